@@ -1,0 +1,478 @@
+// tests/test_bvh.cpp — BVH<T> against brute-force models: the bulk build
+// against a literal (stable-sort, recursive) rendering of the course's rule,
+// collision() and discard-overlap sampling against O(n^2) scans, iterators,
+// copies and moves, validate() after every build and insert, deep trees.
+//
+// Seeds: BVH_SEED (default 12345) and BVH_TEST_SCALE (default 1; larger
+// runs more random cases, 0.1 is for valgrind). Every randomized case prints
+// its seed and case number with any failure.
+#include <algorithm>
+#include <cstdlib>
+#include <iomanip>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bvh.h"
+#include "check.h"
+
+#if __cplusplus >= 202002L
+#include <iterator>
+static_assert(std::bidirectional_iterator<BVH<Disk>::iterator>);
+static_assert(std::bidirectional_iterator<BVH<Triangle>::iterator>);
+static_assert(std::bidirectional_iterator<BVH<Quad>::iterator>);
+#endif
+
+namespace {
+
+unsigned base_seed() {
+  const char *s = std::getenv("BVH_SEED");
+  return s ? unsigned(std::strtoul(s, nullptr, 10)) : 12345u;
+}
+
+double scale() {
+  const char *s = std::getenv("BVH_TEST_SCALE");
+  const double v = s ? std::atof(s) : 1.0;
+  return v > 0 ? v : 1.0;
+}
+
+int scaled(int n) { return std::max(1, int(n * scale())); }
+
+std::string seed_note(unsigned seed, int round) {
+  return "BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
+}
+
+// Random shapes. `grid` > 0 snaps every coordinate to multiples of it so
+// that centres tie often: ties are where a sloppy build rule shows.
+struct Maker {
+  std::mt19937 rng;
+  double grid;
+  explicit Maker(unsigned seed, double grid_ = 0) : rng(seed), grid(grid_) {}
+  double coord(double lo, double hi) {
+    double v = std::uniform_real_distribution<double>(lo, hi)(rng);
+    if (grid > 0) v = std::round(v / grid) * grid;
+    return v;
+  }
+  Color color() { return Color(int(rng() % 256), int(rng() % 256), int(rng() % 256)); }
+  Point near(const Point &c, double size) { return Point(c.x + coord(-size, size), c.y + coord(-size, size)); }
+  void make(Disk &d, double size) { d = Disk(Point(coord(0, 1000), coord(0, 1000)), coord(0, size), color()); }
+  void make(Triangle &t, double size) {
+    const Point c(coord(0, 1000), coord(0, 1000));
+    t = Triangle(near(c, size), near(c, size), near(c, size), color());
+  }
+  void make(Quad &q, double size) {
+    // A convex quad: a jittered square around c, so it is always simple.
+    const Point c(coord(0, 1000), coord(0, 1000));
+    const double s = std::max(coord(1, size), 1.0);
+    q = Quad(Point(c.x - s, c.y - s), Point(c.x + s, c.y - s + coord(0, s / 2)), Point(c.x + s, c.y + s),
+             Point(c.x - s + coord(0, s / 2), c.y + s), color());
+  }
+  template <class T> std::vector<T> scene(int n, double size) {
+    std::vector<T> v(std::size_t(n > 0 ? n : 0));
+    for (T &s : v) make(s, size);
+    return v;
+  }
+};
+
+// ---------------------------------------------------------------------------
+// A literal, recursive rendering of the course's rule and report, written
+// independently of bvh.h (std::stable_sort at every node, iostream
+// formatting as the course's stream would do it). Used only on small trees.
+
+struct RefStats {
+  int nodes = 0, max_depth = 0;
+  double inner = 0, leaf = 0;
+};
+
+std::string box_text(const BoundingBox &b) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(1) << "[<" << std::setw(5) << b.getMin().x << " " << std::setw(5)
+    << b.getMin().y << "> <" << std::setw(5) << b.getMax().x << " " << std::setw(5) << b.getMax().y << ">]";
+  return s.str();
+}
+
+template <class T>
+void ref_build(std::vector<T> shapes, int depth, int k, int limit, std::ostringstream &out, RefStats &st) {
+  BoundingBox box;
+  for (const T &s : shapes) box.extend(s.getBox());
+  const double area = box.getArea() / 1e6;
+  ++st.nodes;
+  st.max_depth = std::max(st.max_depth, depth);
+  out << std::string(std::size_t(3 * depth), ' ');
+  std::ostringstream a;
+  if (depth == 0)
+    a << std::setprecision(3) << area; // the root: the stream is not fixed yet
+  else
+    a << std::fixed << std::setprecision(3) << area;
+  const bool leaf = int(shapes.size()) <= k || (limit > 0 && depth == limit);
+  if (leaf) {
+    st.leaf += area * double(shapes.size());
+    out << "leaf area=" << a.str() << " " << box_text(box) << " elements:";
+    for (const T &s : shapes) out << " " << box_text(s.getBox());
+    out << "\n";
+    return;
+  }
+  st.inner += area;
+  out << "inner area=" << a.str() << " " << box_text(box) << "\n";
+  const bool by_x = box.dx() >= box.dy();
+  std::stable_sort(shapes.begin(), shapes.end(), [by_x](const T &p, const T &q) {
+    return by_x ? p.getCenter().x < q.getCenter().x : p.getCenter().y < q.getCenter().y;
+  });
+  const std::size_t n = shapes.size();
+  std::size_t begin = 0;
+  for (std::size_t g = 0; g < 3; ++g) {
+    const std::size_t size = n / 3 + (g < n % 3 ? 1 : 0);
+    if (size == 0) continue;
+    ref_build(std::vector<T>(shapes.begin() + long(begin), shapes.begin() + long(begin + size)), depth + 1, k,
+              limit, out, st);
+    begin += size;
+  }
+}
+
+template <class T> std::string ref_report(const std::vector<T> &shapes, int k, int limit) {
+  std::ostringstream out;
+  RefStats st;
+  if (!shapes.empty()) ref_build(shapes, 0, k, limit, out, st);
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "node count:      %7d\nmax depth:       %7d\ninner node area: %7.3f\nleaf node area:  %7.3f\n",
+                st.nodes, st.max_depth, st.inner, st.leaf);
+  return out.str() + buf;
+}
+
+template <class T> std::string report(const BVH<T> &tree) {
+  std::ostringstream out;
+  tree.statistics(out, true);
+  return out.str();
+}
+
+template <class T> bool brute_collision(const std::vector<T> &kept, const T &s) {
+  for (const T &k : kept)
+    if (intersect(k, s)) return true;
+  return false;
+}
+
+template <class T> std::vector<T> contents(const BVH<T> &tree) {
+  return std::vector<T>(tree.begin(), tree.end());
+}
+
+// Shapes compare by geometry and colour; a canonical order makes multisets
+// comparable.
+template <class T> std::string key_of(const T &s) {
+  std::ostringstream o;
+  o << std::setprecision(17) << s.getBox() << s.getCenter().x << "," << s.getCenter().y << "#"
+    << s.getColor().getHexString();
+  return o.str();
+}
+
+template <class T> bool same_multiset(std::vector<T> a, std::vector<T> b) {
+  if (a.size() != b.size()) return false;
+  auto by_key = [](const T &p, const T &q) { return key_of(p) < key_of(q); };
+  std::sort(a.begin(), a.end(), by_key);
+  std::sort(b.begin(), b.end(), by_key);
+  return a == b;
+}
+
+template <class T> void check_build_against_reference(unsigned seed) {
+  const int rounds = scaled(150);
+  for (int round = 0; round < rounds; ++round) {
+    note(seed_note(seed, round));
+    Maker make(seed + unsigned(round) * 7919u, round % 3 == 0 ? 50.0 : (round % 3 == 1 ? 0.5 : 0.0));
+    const int n = int(make.rng() % 200);
+    const int k = 1 + int(make.rng() % 6);
+    const int limit = int(make.rng() % 7); // 0: unlimited
+    const std::vector<T> shapes = make.template scene<T>(n, 40);
+    BVH<T> tree(k, limit);
+    tree.construct(shapes);
+    std::string why;
+    CHECK(tree.validate(&why));
+    if (!why.empty()) note(seed_note(seed, round) + " " + why);
+    CHECK_EQ(tree.size(), shapes.size());
+    CHECK(report(tree) == ref_report(shapes, k, limit));
+    CHECK(same_multiset(contents(tree), shapes));
+  }
+}
+
+} // namespace
+
+// ---------------------------------------------------------------------------
+
+TEST(course_example_matches_the_handout_shape) {
+  // The handout's 36-triangle example, rebuilt from its own rule: 13 nodes,
+  // depth 2, nine leaves of four.
+  Maker make(base_seed());
+  const std::vector<Triangle> shapes = make.scene<Triangle>(36, 40);
+  BVH<Triangle> tree(4, 2);
+  tree.construct(shapes);
+  CHECK(tree.validate());
+  CHECK_EQ(tree.node_count(), std::size_t(13));
+  CHECK_EQ(tree.height(), 2);
+}
+
+TEST(bulk_build_equals_literal_course_rule_disks) { check_build_against_reference<Disk>(base_seed()); }
+TEST(bulk_build_equals_literal_course_rule_triangles) { check_build_against_reference<Triangle>(base_seed() + 1); }
+TEST(bulk_build_equals_literal_course_rule_quads) { check_build_against_reference<Quad>(base_seed() + 2); }
+
+TEST(bulk_build_with_all_centres_equal) {
+  // Every centre ties on both axes: the order must be the input order.
+  std::vector<Disk> shapes;
+  for (int i = 0; i < 40; ++i) shapes.push_back(Disk(Point(500, 500), 1 + i % 7, Color(i, 0, 0)));
+  for (int k = 1; k <= 5; ++k) {
+    BVH<Disk> tree(k, 0);
+    tree.construct(shapes);
+    CHECK(tree.validate());
+    CHECK(report(tree) == ref_report(shapes, k, 0));
+  }
+}
+
+TEST(statistics_of_an_empty_tree) {
+  BVH<Quad> tree(4, 3);
+  std::ostringstream out;
+  tree.statistics(out, true);
+  CHECK_EQ(out.str(), std::string("node count:            0\nmax depth:             0\n"
+                                  "inner node area:   0.000\nleaf node area:    0.000\n"));
+  tree.construct({});
+  CHECK(tree.empty());
+  CHECK(tree.validate());
+}
+
+TEST(root_area_prints_three_significant_digits) {
+  // 900 x 1000 = 0.9 of the canvas: the course prints the root as "0.9".
+  std::vector<Quad> q = {Quad(Point(0, 0), Point(900, 0), Point(900, 1000), Point(0, 1000), Color(1, 2, 3))};
+  BVH<Quad> tree(4, 2);
+  tree.construct(q);
+  std::ostringstream out;
+  tree.statistics(out, true);
+  CHECK(out.str().rfind("leaf area=0.9 [<  0.0   0.0> <900.0 1000.0>] elements:", 0) == 0);
+}
+
+TEST(iterators_on_empty_and_one_shape_trees) {
+  const BVH<Disk> empty_tree;
+  CHECK(empty_tree.begin() == empty_tree.end());
+  CHECK(!(empty_tree.begin() != empty_tree.end()));
+  BVH<Disk> one(4, 0);
+  const Disk d(Point(1, 2), 3, Color(4, 5, 6));
+  one.insert(d);
+  BVH<Disk>::iterator it = one.begin();
+  CHECK(*it == d);
+  CHECK_EQ(it->getRadius(), 3.0);
+  BVH<Disk>::iterator old = it++;
+  CHECK(old == one.begin());
+  CHECK(it == one.end());
+  old = it--;
+  CHECK(old == one.end());
+  CHECK(it == one.begin());
+  CHECK(--one.end() == one.begin());
+  CHECK(++one.begin() == one.end());
+}
+
+TEST(iterators_walk_both_ways_over_every_shape) {
+  const unsigned seed = base_seed();
+  for (int round = 0; round < scaled(40); ++round) {
+    note(seed_note(seed, round));
+    Maker make(seed + unsigned(round));
+    const int n = 1 + int(make.rng() % 300);
+    const std::vector<Triangle> shapes = make.scene<Triangle>(n, 30);
+    BVH<Triangle> tree(1 + int(make.rng() % 5), int(make.rng() % 6));
+    if (round % 2)
+      tree.construct(shapes);
+    else
+      for (const Triangle &t : shapes) tree.insert(t);
+    const BVH<Triangle> &view = tree;
+    std::vector<Triangle> forward, backward, post_forward, post_backward;
+    for (BVH<Triangle>::iterator it = view.begin(); it != view.end(); ++it) forward.push_back(*it);
+    for (BVH<Triangle>::iterator it = view.begin(); it != view.end(); it++) post_forward.push_back(*it);
+    for (BVH<Triangle>::iterator it = view.end(); it != view.begin();) backward.push_back(*--it);
+    for (BVH<Triangle>::iterator it = view.end(); it != view.begin();) {
+      it--;
+      post_backward.push_back(*it);
+    }
+    CHECK_EQ(forward.size(), std::size_t(n));
+    CHECK(same_multiset(forward, shapes));
+    CHECK(post_forward == forward);
+    std::reverse(backward.begin(), backward.end());
+    std::reverse(post_backward.begin(), post_backward.end());
+    CHECK(backward == forward);
+    CHECK(post_backward == forward);
+    CHECK(*--view.end() == forward.back());
+    // Post-increment returns the old position, pre-increment the new one.
+    BVH<Triangle>::iterator a = view.begin();
+    BVH<Triangle>::iterator b = a++;
+    CHECK(b == view.begin());
+    BVH<Triangle>::iterator c = view.begin();
+    CHECK(++c == a);
+  }
+}
+
+TEST(copies_are_deep_and_independent) {
+  Maker make(base_seed());
+  const std::vector<Disk> shapes = make.scene<Disk>(100, 20);
+  BVH<Disk> original(3, 4);
+  original.construct(shapes);
+  const std::string before = report(original);
+  BVH<Disk> copy(original);
+  CHECK(copy.validate());
+  CHECK(report(copy) == before);
+  copy.insert(Disk(Point(1, 1), 1, Color(0, 0, 0)));
+  std::ostringstream picture;
+  copy.render_recolor(picture); // recolours copy's shapes only
+  CHECK(report(original) == before);
+  CHECK(contents(original) != contents(copy));
+  CHECK(same_multiset(contents(original), shapes));
+  BVH<Disk> assigned(9, 9);
+  assigned = original;
+  CHECK(assigned.validate());
+  CHECK_EQ(assigned.split_threshold(), 3);
+  CHECK(report(assigned) == before);
+  original.clear();
+  CHECK(report(assigned) == before);
+}
+
+TEST(self_assignment_is_harmless) {
+  Maker make(base_seed());
+  BVH<Quad> tree(2, 0);
+  tree.construct(make.scene<Quad>(50, 20));
+  const std::string before = report(tree);
+  BVH<Quad> &alias = tree;
+  tree = alias;
+  CHECK(tree.validate());
+  CHECK(report(tree) == before);
+  tree = std::move(alias);
+  CHECK(tree.validate());
+  CHECK(report(tree) == before);
+}
+
+TEST(moves_leave_a_valid_empty_tree) {
+  Maker make(base_seed());
+  BVH<Triangle> a(4, 3);
+  a.construct(make.scene<Triangle>(60, 20));
+  const std::string before = report(a);
+  BVH<Triangle> b(std::move(a));
+  CHECK(report(b) == before);
+  CHECK(a.empty());
+  CHECK(a.validate());
+  CHECK(a.begin() == a.end());
+  a.insert(Triangle(Point(0, 0), Point(1, 0), Point(0, 1), Color(1, 1, 1)));
+  CHECK(a.validate());
+  CHECK_EQ(a.size(), std::size_t(1));
+  BVH<Triangle> c;
+  c = std::move(b);
+  CHECK(report(c) == before);
+  CHECK(b.empty() && b.validate());
+}
+
+TEST(insert_keeps_every_invariant) {
+  const unsigned seed = base_seed();
+  for (int round = 0; round < scaled(30); ++round) {
+    note(seed_note(seed, round));
+    Maker make(seed + 31u * unsigned(round), round % 2 ? 10.0 : 0.0);
+    const int k = 1 + int(make.rng() % 5), limit = int(make.rng() % 8);
+    BVH<Quad> tree(k, limit);
+    const std::vector<Quad> shapes = make.scene<Quad>(1 + int(make.rng() % 250), 30);
+    bool all_valid = true;
+    std::string why;
+    for (std::size_t i = 0; i < shapes.size(); ++i) {
+      tree.insert(shapes[i]);
+      if (all_valid && !tree.validate(&why)) {
+        all_valid = false;
+        note(seed_note(seed, round) + " after insert " + std::to_string(i) + ": " + why);
+      }
+      if (tree.size() != i + 1) all_valid = false;
+    }
+    CHECK(all_valid);
+    CHECK(same_multiset(contents(tree), shapes));
+    if (limit > 0) CHECK(tree.height() <= limit);
+  }
+}
+
+template <class T> void check_collision_and_discard(unsigned seed, double size) {
+  for (int round = 0; round < scaled(12); ++round) {
+    note(seed_note(seed, round));
+    Maker make(seed + 101u * unsigned(round), round % 3 == 0 ? 5.0 : 0.0);
+    const std::vector<T> candidates = make.template scene<T>(scaled(400), size);
+    BVH<T> tree(1 + int(make.rng() % 6), int(make.rng() % 9));
+    std::vector<T> kept; // the brute-force model
+    int disagreements = 0;
+    for (const T &s : candidates) {
+      const bool fast = tree.collision(s), slow = brute_collision(kept, s);
+      if (fast != slow) ++disagreements;
+      if (!slow) {
+        kept.push_back(s);
+        tree.insert(s);
+      }
+    }
+    CHECK_EQ(disagreements, 0);
+    CHECK(tree.validate());
+    CHECK(same_multiset(contents(tree), kept));
+    // Probes against a finished bulk-built tree of everything.
+    BVH<T> bulk(1 + int(make.rng() % 6), int(make.rng() % 9));
+    bulk.construct(candidates);
+    const std::vector<T> probes = make.template scene<T>(scaled(200), size);
+    int wrong = 0;
+    for (const T &p : probes)
+      if (bulk.collision(p) != brute_collision(candidates, p)) ++wrong;
+    CHECK_EQ(wrong, 0);
+  }
+}
+
+TEST(collision_and_discard_overlap_equal_brute_force_disks) { check_collision_and_discard<Disk>(base_seed(), 40); }
+TEST(collision_and_discard_overlap_equal_brute_force_triangles) {
+  check_collision_and_discard<Triangle>(base_seed() + 1, 40);
+}
+TEST(collision_and_discard_overlap_equal_brute_force_quads) {
+  check_collision_and_discard<Quad>(base_seed() + 2, 30);
+}
+
+TEST(touching_shapes_collide) {
+  BVH<Disk> tree(4, 0);
+  tree.insert(Disk(Point(100, 100), 10, Color()));
+  CHECK(tree.collision(Disk(Point(120, 100), 10, Color())));  // tangent
+  CHECK(!tree.collision(Disk(Point(121, 100), 10, Color()))); // 1 apart
+  BVH<Quad> quads(4, 0);
+  quads.insert(Quad(Point(0, 0), Point(10, 0), Point(10, 10), Point(0, 10), Color()));
+  CHECK(quads.collision(Quad(Point(10, 0), Point(20, 0), Point(20, 10), Point(10, 10), Color()))); // shared edge
+  CHECK(!quads.collision(Quad(Point(11, 0), Point(20, 0), Point(20, 10), Point(11, 10), Color())));
+}
+
+TEST(split_threshold_one_makes_binary_splits_of_two) {
+  BVH<Disk> tree(1, 0);
+  for (int i = 0; i < 50; ++i) {
+    tree.insert(Disk(Point(10.0 * i, 5.0 * (i % 7)), 2, Color()));
+    CHECK(tree.validate());
+  }
+  BVH<Disk> bulk(1, 0);
+  bulk.construct(contents(tree));
+  CHECK(bulk.validate());
+  CHECK_EQ(bulk.size(), std::size_t(50));
+}
+
+TEST(deep_trees_do_not_recurse) {
+  // Sorted input with no depth limit drives insert into a long spine; copy,
+  // iteration, statistics, validate and destruction must all cope.
+  BVH<Disk> tree(1, 0);
+  const int n = scaled(5000);
+  for (int i = 0; i < n; ++i) tree.insert(Disk(Point(0.01 * i, 0.01 * i), 0.001, Color()));
+  CHECK_EQ(tree.size(), std::size_t(n));
+  BVH<Disk> copy = tree;
+  std::size_t walked = 0;
+  for (BVH<Disk>::iterator it = copy.begin(); it != copy.end(); ++it) ++walked;
+  CHECK_EQ(walked, std::size_t(n));
+  std::ostringstream sink;
+  copy.statistics(sink, true);
+  CHECK(copy.validate());
+  CHECK(copy.collision(Disk(Point(0.01 * (n / 2), 0.01 * (n / 2)), 0, Color())));
+}
+
+TEST(depth_limit_leaves_grow_without_splitting) {
+  BVH<Triangle> tree(2, 1);
+  Maker make(base_seed());
+  for (const Triangle &t : make.scene<Triangle>(100, 20)) tree.insert(t);
+  CHECK(tree.validate());
+  CHECK(tree.height() <= 1);
+  CHECK_EQ(tree.size(), std::size_t(100));
+}
+
+int main(int argc, char **argv) {
+  std::cout << "seed " << base_seed() << " (set BVH_SEED to change), scale " << scale() << std::endl;
+  return run_all_tests(argc, argv);
+}
