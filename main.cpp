@@ -538,6 +538,10 @@ int bvh_main(int argc, char **argv) {
     std::cerr << "bvh.out: " << e.message << "\n" << kUsage;
     return 2;
   }
+  if (!o.generate && !std::ifstream(o.input, std::ios::binary)) {
+    std::cerr << "bvh.out: " << o.input << ": cannot open: " << std::strerror(errno) << "\n" << kUsage;
+    return 2;
+  }
   if (!output_writable(o.output)) return 2;
   if (o.generate) {
     // Default sizes: a fifth of the canvas covered (no overlap), or about

@@ -1,0 +1,92 @@
+#!/usr/bin/env bash
+# tests/cli_errors.sh DIR — bvh.out on wrong command lines and wrong scenes.
+# Each case expects an exit status, a message on stderr matching a pattern,
+# and no output file left behind (an existing one stays untouched). Prints
+# `ok NAME` or `FAIL NAME why` per case; run by tests/run.sh.
+set -u
+cd "$(dirname "$0")/.."
+dir=${1:-build/test-out/cli}
+rm -rf "$dir"
+mkdir -p "$dir"
+good=inputs/36.disks
+
+# expect NAME STATUS PATTERN -- ARGS...   (the output is $dir/out.html)
+expect() {
+  local name=$1 status=$2 pattern=$3
+  shift 4
+  rm -f "$dir"/out.html "$dir"/*.partial
+  ./bvh.out "$@" >"$dir/stdout" 2>"$dir/stderr"
+  local rc=$?
+  if [ "$rc" -ne "$status" ]; then
+    echo "FAIL $name exit $rc, expected $status: $(head -c 200 "$dir/stderr")"
+  elif ! grep -qE -- "$pattern" "$dir/stderr"; then
+    echo "FAIL $name stderr does not match /$pattern/: $(head -c 200 "$dir/stderr")"
+  elif [ "$status" -ne 0 ] && { [ -e "$dir/out.html" ] || ls "$dir"/*.partial >/dev/null 2>&1; }; then
+    echo "FAIL $name an output file was left behind"
+  else
+    echo "ok $name"
+  fi
+}
+
+o=$dir/out.html
+expect cli_unknown_flag 2 "unknown argument '--bogus'" -- -i $good -o "$o" --bogus
+expect cli_flag_missing_value 2 "--depth_limit needs a value" -- -i $good -o "$o" --depth_limit
+expect cli_non_integer_threshold 2 "--split_threshold needs an integer" -- -i $good -o "$o" --split_threshold abc
+expect cli_threshold_zero 2 "--split_threshold needs an integer from 1" -- -i $good -o "$o" --split_threshold 0
+expect cli_negative_depth 2 "--depth_limit needs an integer from 0" -- -i $good -o "$o" --depth_limit -1
+expect cli_trailing_junk_number 2 "--depth_limit needs an integer" -- -i $good -o "$o" --depth_limit 3x
+expect cli_missing_input_flag 2 "missing -i" -- -o "$o"
+expect cli_missing_output_flag 2 "missing -o" -- -i $good
+expect cli_unknown_suffix 2 "unknown input kind" -- -i tests/golden.list -o "$o"
+expect cli_missing_input_file 2 "cannot open" -- -i "$dir/nothing.disks" -o "$o"
+expect cli_discard_without_incremental 2 "needs --incremental" -- -i $good -o "$o" --discard_overlap
+expect cli_unwritable_output 2 "cannot write" -- -i $good -o "$dir/no/such/dir/out.html"
+expect cli_output_not_html 2 "must end in .html or .svg" -- -i $good -o "$dir/out.txt"
+expect cli_generate_bad_kind 2 "needs a kind" -- --generate circles 10 -o "$dir/x.circles"
+expect cli_usage_shows_on_error 2 "^usage: bvh.out" -- --nonsense
+
+# Wrong scenes: FILE:LINE: message, exit 1, no picture.
+bad_scene() { # NAME SUFFIX PATTERN CONTENT
+  local f=$dir/$1.$2
+  printf '%b' "$4" >"$f"
+  expect "$1" 1 "$3" -- -i "$f" -o "$o"
+}
+bad_scene input_not_a_number disks "\.disks:2: expected a coordinate" \
+  'pt= <1 2> radius= 3 color= {1 2 3}\npt= <x 2> radius= 3 color= {1 2 3}\n'
+bad_scene input_nan disks "\.disks:1: a coordinate is not a finite number" 'pt= <nan 2> radius= 3 color= {1 2 3}\n'
+bad_scene input_negative_radius disks "\.disks:1: negative radius" 'pt= <1 2> radius= -3 color= {1 2 3}\n'
+bad_scene input_colour_out_of_range triangles "\.triangles:1: expected a colour channel" \
+  'pt= <1 2> pt= <3 4> pt= <5 6> color= {1 256 3}\n'
+bad_scene input_too_few_points quads "\.quads:1: expected 'pt='" 'pt= <1 2> pt= <3 4> pt= <5 6> color= {1 2 3}\n'
+bad_scene input_too_many_points triangles "\.triangles:1: expected 'color='" \
+  'pt= <1 2> pt= <3 4> pt= <5 6> pt= <7 8> color= {1 2 3}\n'
+bad_scene input_wrong_kind_line triangles "\.triangles:1: expected 'pt='" 'pt= <1 2> radius= 3 color= {1 2 3}\n'
+bad_scene input_missing_bracket disks "\.disks:1: expected '>'" 'pt= <1 2 radius= 3 color= {1 2 3}\n'
+bad_scene input_trailing_text disks "\.disks:1: unexpected 'extra' after the shape" \
+  'pt= <1 2> radius= 3 color= {1 2 3} extra\n'
+bad_scene input_binary_garbage disks "\.disks:1: expected 'pt=', found byte 0x" '\x01\x02\xff\n'
+bad_scene input_huge_coordinate disks "\.disks:1: a coordinate beyond" 'pt= <1e12 2> radius= 3 color= {1 2 3}\n'
+
+# An error keeps an existing picture as it was.
+echo keep >"$o"
+printf 'pt= <x> radius= 1 color= {1 2 3}\n' >"$dir/broken.disks"
+./bvh.out -i "$dir/broken.disks" -o "$o" >/dev/null 2>&1
+if [ "$(cat "$o")" = keep ]; then echo "ok input_error_keeps_existing_output"; else
+  echo "FAIL input_error_keeps_existing_output the old file was replaced"; fi
+
+# Accepted: CRLF, blank lines, trailing blanks, an empty scene.
+printf 'pt= <1 2> radius= 3 color= {1 2 3}\r\n\r\n  pt=  < 4 5 >  radius=  1  color=  { 0 0 0 }   \n' >"$dir/crlf.disks"
+if ./bvh.out -i "$dir/crlf.disks" -o "$o" --depth_limit 2 --print_tree >"$dir/stdout" 2>&1 &&
+  grep -q "^node count:            1$" "$dir/stdout" && grep -q "elements: \[< -2.0  -1.0> <  4.0   5.0>\] \[<  3.0   4.0> <  5.0   6.0>\]" "$dir/stdout"; then
+  echo "ok input_crlf_blank_lines_and_spacing_accepted"
+else
+  echo "FAIL input_crlf_blank_lines_and_spacing_accepted $(head -c 300 "$dir/stdout")"
+fi
+: >"$dir/empty.quads"
+if ./bvh.out -i "$dir/empty.quads" -o "$o" --depth_limit 3 --print_tree >"$dir/stdout" 2>&1 &&
+  [ "$(cat "$dir/stdout")" = "$(printf 'node count:            0\nmax depth:             0\ninner node area:   0.000\nleaf node area:    0.000')" ] &&
+  grep -q "</svg>" "$o"; then
+  echo "ok input_empty_scene_is_an_empty_tree"
+else
+  echo "FAIL input_empty_scene_is_an_empty_tree $(head -c 300 "$dir/stdout")"
+fi

@@ -1,0 +1,321 @@
+#!/usr/bin/env python3
+"""tests/verify_golden.py — an independent model of bvh.out's stdout.
+
+Recomputes every golden file of tests/golden.list from the handout's rules,
+written again from scratch in Python (recursive build with a stable sort,
+the incremental strategy of README.txt, discard-overlap sampling with exact
+rational geometry), and compares it with expected_output/. It is how the
+golden files were checked before they were committed, and `make test` runs
+it again so the C++ and this model keep agreeing.
+
+usage: verify_golden.py LABEL DATA_FOLDER   (LABEL: course or inputs)
+"""
+import struct
+import sys
+from fractions import Fraction
+
+CANVAS = 1000.0 * 1000.0
+
+
+def to_float32(text):
+    """The float nearest to the decimal text (ties to even), as a Python float:
+    what the course's `istr >> float` reads."""
+    exact = Fraction(text)
+    guess = struct.unpack("f", struct.pack("f", float(exact)))[0]
+    bits = struct.unpack("I", struct.pack("f", guess))[0]
+    best = None
+    for b in (bits - 1, bits, bits + 1):
+        if not 0 <= b < 2**32:
+            continue
+        v = struct.unpack("f", struct.pack("I", b))[0]
+        if v != v or v in (float("inf"), float("-inf")):
+            continue
+        d = abs(Fraction(v) - exact)
+        if best is None or d < best[0] or (d == best[0] and b % 2 == 0):
+            best = (d, b, v)
+    return best[2]
+
+
+def load(path):
+    kind = path.rsplit(".", 1)[1]
+    shapes = []
+    with open(path) as f:
+        for line in f:
+            text = line.replace("<", " ").replace(">", " ").replace("{", " ").replace("}", " ")
+            tok = text.split()
+            if not tok:
+                continue
+            if kind == "disks":
+                x, y, r = to_float32(tok[1]), to_float32(tok[2]), to_float32(tok[4])
+                shapes.append(("disk", [(x, y)], r))
+            else:
+                n = 3 if kind == "triangles" else 4
+                pts = [(to_float32(tok[1 + 3 * i]), to_float32(tok[2 + 3 * i])) for i in range(n)]
+                shapes.append(("poly", pts, 0.0))
+    return shapes
+
+
+def box_of(s):
+    kind, pts, r = s
+    if kind == "disk":
+        (x, y), = pts
+        return (x - r, y - r, x + r, y + r)
+    xs = [p[0] for p in pts]
+    ys = [p[1] for p in pts]
+    return (min(xs), min(ys), max(xs), max(ys))
+
+
+def center_of(s):
+    kind, pts, _ = s
+    if kind == "disk":
+        return pts[0]
+    sx = sy = 0.0
+    for x, y in pts:  # same summation order as shapes.h
+        sx += x
+        sy += y
+    return (sx / len(pts), sy / len(pts))
+
+
+def union(boxes):
+    return (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes), max(b[3] for b in boxes))
+
+
+def area(b):
+    return (b[2] - b[0]) * (b[3] - b[1])
+
+
+def box_text(b):
+    return "[<%5.1f %5.1f> <%5.1f %5.1f>]" % b
+
+
+class Node:
+    def __init__(self, depth):
+        self.depth = depth
+        self.children = []
+        self.shapes = None  # list for a leaf
+        self.box = None
+
+
+def build(node, shapes, k, limit):
+    """The handout's rule, literally: stable sort, three near-equal groups."""
+    node.box = union([box_of(s) for s in shapes])
+    if len(shapes) <= k or (limit > 0 and node.depth == limit):
+        node.shapes = list(shapes)
+        node.children = []
+        return
+    b = node.box
+    axis = 0 if b[2] - b[0] >= b[3] - b[1] else 1
+    ordered = sorted(shapes, key=lambda s: center_of(s)[axis])  # Python's sort is stable
+    n = len(ordered)
+    node.shapes = None
+    node.children = []
+    start = 0
+    for g in range(3):
+        size = n // 3 + (1 if g < n % 3 else 0)
+        if size == 0:
+            continue
+        child = Node(node.depth + 1)
+        build(child, ordered[start:start + size], k, limit)
+        node.children.append(child)
+        start += size
+
+
+def insert(root, shape, k, limit):
+    """README.txt's insertion strategy: least area growth, ties to the smaller
+    box, then the first child; an overfull leaf above the limit is rebuilt
+    by the bulk rule."""
+    sb = box_of(shape)
+    if root is None:
+        root = Node(0)
+        root.box = sb
+        root.shapes = [shape]
+        return root
+    node = root
+    while True:
+        node.box = union([node.box, sb])
+        if node.shapes is not None:
+            break
+        best = None
+        for c in node.children:
+            grown = area(union([c.box, sb])) - area(c.box)
+            key = (grown, area(c.box))
+            if best is None or key < best[0]:
+                best = (key, c)
+        node = best[1]
+    node.shapes.append(shape)
+    if len(node.shapes) > k and (limit == 0 or node.depth < limit):
+        build(node, node.shapes, k, limit)
+    return root
+
+
+# ---- exact geometry (rationals) for discard-overlap -----------------------
+
+def orient(a, b, c):
+    v = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+    return (v > 0) - (v < 0)
+
+
+def on_segment(a, b, p):
+    return (orient(a, b, p) == 0 and min(a[0], b[0]) <= p[0] <= max(a[0], b[0])
+            and min(a[1], b[1]) <= p[1] <= max(a[1], b[1]))
+
+
+def segments_meet(a, b, c, d):
+    o1, o2, o3, o4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
+    if o1 * o2 < 0 and o3 * o4 < 0:
+        return True
+    return on_segment(a, b, c) or on_segment(a, b, d) or on_segment(c, d, a) or on_segment(c, d, b)
+
+
+def inside_or_on(poly, p):
+    n = len(poly)
+    for i in range(n):
+        if on_segment(poly[i], poly[(i + 1) % n], p):
+            return True
+    crossings = 0
+    for i in range(n):
+        a, b = poly[i], poly[(i + 1) % n]
+        if (a[1] > p[1]) != (b[1] > p[1]):
+            x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1])
+            if p[0] < x:
+                crossings += 1
+    return crossings % 2 == 1
+
+
+def seg_point_dist2(a, b, p):
+    abx, aby = b[0] - a[0], b[1] - a[1]
+    apx, apy = p[0] - a[0], p[1] - a[1]
+    ll = abx * abx + aby * aby
+    t = Fraction(0) if ll == 0 else (apx * abx + apy * aby) / ll
+    t = min(max(t, Fraction(0)), Fraction(1))
+    qx, qy = a[0] + t * abx - p[0], a[1] + t * aby - p[1]
+    return qx * qx + qy * qy
+
+
+def exact_intersect(s, t):
+    fs = (s[0], [(Fraction(x), Fraction(y)) for x, y in s[1]], Fraction(s[2]))
+    ft = (t[0], [(Fraction(x), Fraction(y)) for x, y in t[1]], Fraction(t[2]))
+    if fs[0] == "disk" and ft[0] == "disk":
+        (a,), (b,) = fs[1], ft[1]
+        dx, dy = a[0] - b[0], a[1] - b[1]
+        return dx * dx + dy * dy <= (fs[2] + ft[2]) ** 2
+    if fs[0] == "disk" or ft[0] == "disk":
+        disk, poly = (fs, ft) if fs[0] == "disk" else (ft, fs)
+        c, r, pts = disk[1][0], disk[2], poly[1]
+        if inside_or_on(pts, c):
+            return True
+        return any(seg_point_dist2(pts[i], pts[(i + 1) % len(pts)], c) <= r * r for i in range(len(pts)))
+    p, q = fs[1], ft[1]
+    for i in range(len(p)):
+        for j in range(len(q)):
+            if segments_meet(p[i], p[(i + 1) % len(p)], q[j], q[(j + 1) % len(q)]):
+                return True
+    return inside_or_on(p, q[0]) or inside_or_on(q, p[0])
+
+
+def boxes_touch(a, b):
+    return a[0] <= b[2] and b[0] <= a[2] and a[1] <= b[3] and b[1] <= a[3]
+
+
+def discard_overlap(shapes):
+    kept = []
+    for s in shapes:
+        sb = box_of(s)
+        if not any(boxes_touch(sb, box_of(k)) and exact_intersect(k, s) for k in kept):
+            kept.append(s)
+    return kept
+
+
+def report(root, print_tree=True):
+    lines = []
+    count = 0
+    max_depth = 0
+    inner = leaf = 0.0
+    stack = [root] if root else []
+    while stack:
+        n = stack.pop()
+        a = area(n.box) / CANVAS
+        count += 1
+        max_depth = max(max_depth, n.depth)
+        text = ("%.3g" if n is root else "%.3f") % a
+        if n.shapes is not None:
+            leaf += a * len(n.shapes)
+            lines.append("   " * n.depth + "leaf area=" + text + " " + box_text(n.box) + " elements:"
+                         + "".join(" " + box_text(box_of(s)) for s in n.shapes))
+        else:
+            inner += a
+            lines.append("   " * n.depth + "inner area=" + text + " " + box_text(n.box))
+        stack.extend(reversed(n.children))
+    lines.append("node count:      %7d" % count)
+    lines.append("max depth:       %7d" % max_depth)
+    lines.append("inner node area: %7.3f" % inner)
+    lines.append("leaf node area:  %7.3f" % leaf)
+    return "\n".join(lines) + "\n"
+
+
+def expected_stdout(data, argv):
+    k, limit, incremental, discard = 4, 0, False, False
+    scene = None
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if a == "-i":
+            scene = data + "/" + argv[i + 1]
+            i += 1
+        elif a == "--split_threshold":
+            k = int(argv[i + 1])
+            i += 1
+        elif a == "--depth_limit":
+            limit = int(argv[i + 1])
+            i += 1
+        elif a == "--incremental":
+            incremental = True
+        elif a == "--discard_overlap":
+            discard = True
+        i += 1
+    shapes = load(scene)
+    if limit <= 0:
+        return ""  # unlimited depth: the course prints no statistics
+    if discard:
+        shapes = discard_overlap(shapes)
+    root = None
+    if incremental:
+        for s in shapes:
+            root = insert(root, s, k, limit)
+    elif shapes:
+        root = Node(0)
+        build(root, shapes, k, limit)
+    return report(root)
+
+
+def main():
+    label, data = sys.argv[1], sys.argv[2]
+    bad = 0
+    checked = 0
+    for line in open("tests/golden.list"):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        name, *argv = line.split()
+        want = expected_stdout(data, argv)
+        with open("expected_output/%s/%s.txt" % (label, name)) as f:
+            have = f.read()
+        checked += 1
+        if want != have:
+            bad += 1
+            print("MISMATCH %s/%s" % (label, name))
+            wl, hl = want.splitlines(), have.splitlines()
+            for j, (w, h) in enumerate(zip(wl, hl)):
+                if w != h:
+                    print("  line %d\n  model: %s\n  file:  %s" % (j + 1, w, h))
+                    break
+            else:
+                print("  lengths differ: model %d lines, file %d lines" % (len(wl), len(hl)))
+        else:
+            print("agrees %s/%s" % (label, name))
+    print("%d golden files checked, %d disagree" % (checked, bad))
+    sys.exit(1 if bad else 0)
+
+
+if __name__ == "__main__":
+    main()
