@@ -40,3 +40,34 @@ demo: bvh.out
 
 clean:
 	rm -rf $(BUILD) bvh.out demo
+
+# ---- make bench (bench/bench.cpp): ours against a brute-force scan, Boost.Geometry's
+# R-trees, Box2D's b2DynamicTree and a uniform grid; writes bench/results.txt and
+# bench/results.svg. Peers are used when installed (apt-get install libboost-dev
+# libbox2d-dev), else skipped with a notice. make bench RUNS=n; make bench QUICK=1 (a
+# reduced set in under a minute, results in build/bench-quick/).
+# Every method is compiled with the same flags.
+BENCH_CXXFLAGS = -std=c++17 -O2 -DNDEBUG -Wall -Wextra
+BENCH_ARGS = $(if $(RUNS),--runs $(RUNS)) $(if $(filter-out 0,$(QUICK)),--quick)
+.PHONY: bench-peers
+
+bench: bvh.out $(BUILD)/bench
+	$(BUILD)/bench $(BENCH_ARGS)
+
+# Which peers this machine has; the file changes (forcing a rebuild) only when that does.
+$(BUILD)/bench-peers: bench-peers
+	@mkdir -p $(BUILD); p=; \
+	if echo 'int main(){}' | $(CXX) -x c++ - -lbox2d -o $(BUILD)/bench-probe >/dev/null 2>&1; then p=box2d; \
+	else echo "note: libbox2d not found (apt-get install libbox2d-dev): Box2D will be skipped"; fi; \
+	rm -f $(BUILD)/bench-probe; \
+	if [ ! -f $@ ] || [ "$$(cat $@)" != "$$p" ]; then echo "$$p" > $@; fi
+bench-peers:
+
+# The results name the bvh.h they measured (its sha1, and whether HEAD has it).
+$(BUILD)/bench: bench/bench.cpp main.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
+	@id=$$(sha1sum bvh.h | cut -c1-12); head=$$(git rev-parse --short HEAD 2>/dev/null || echo none); \
+	if [ "$$(git show HEAD:bvh.h 2>/dev/null | sha1sum | cut -c1-12)" = "$$id" ]; then st="as in HEAD $$head"; \
+	else st="modified since HEAD $$head"; fi; info="bvh.h sha1 $$id, $$st"; \
+	if [ "$$(cat $(BUILD)/bench-peers)" = box2d ]; then lib=-lbox2d; def=-DBENCH_HAVE_BOX2D_LIB; else lib=; def=; fi; \
+	echo "$(CXX) $(BENCH_CXXFLAGS) $$def bench/bench.cpp -o $@ $$lib   ($$info)"; \
+	$(CXX) $(BENCH_CXXFLAGS) $$def -DBENCH_BUILD_INFO="\"$$info\"" bench/bench.cpp -o $@ $$lib

@@ -120,10 +120,51 @@ def build(node, shapes, k, limit):
         start += size
 
 
+def f32(d):
+    return struct.unpack("f", struct.pack("f", d))[0]
+
+
+def f32_step(f, up):
+    bits = struct.unpack("I", struct.pack("f", f))[0]
+    if f == 0:
+        bits = 0x00000001 if up else 0x80000001
+    elif (f > 0) == up:
+        bits += 1
+    else:
+        bits -= 1
+    return struct.unpack("f", struct.pack("I", bits))[0]
+
+
+def float_box(b):
+    """A box rounded outwards to floats, as the parent keeps it."""
+    lo = [f32(v) for v in b[:2]]
+    hi = [f32(v) for v in b[2:]]
+    lo = [f32_step(f, False) if f > v else f for f, v in zip(lo, b[:2])]
+    hi = [f32_step(f, True) if f < v else f for f, v in zip(hi, b[2:])]
+    return (lo[0], lo[1], hi[0], hi[1])
+
+
+def count(node):
+    if node.shapes is not None:
+        return len(node.shapes)
+    return sum(count(c) for c in node.children)
+
+
+def leaf_order(node):
+    if node.shapes is not None:
+        return list(node.shapes)
+    return [s for c in node.children for s in leaf_order(c)]
+
+
+LOPSIDED = 0.6
+
+
 def insert(root, shape, k, limit):
-    """README.txt's insertion strategy: least area growth, ties to the smaller
-    box, then the first child; an overfull leaf above the limit is rebuilt
-    by the bulk rule."""
+    """README.txt's insertion strategy: descend into the child whose float
+    box grows least in area (ties: the smaller, then the first), add to the
+    leaf, split an overfull leaf above the limit by the build rule, then
+    rebuild the highest node on the path (of at least max(16, 3(k+1))
+    shapes) whose child on the path holds more than 0.6 of its shapes."""
     sb = box_of(shape)
     if root is None:
         root = Node(0)
@@ -131,20 +172,33 @@ def insert(root, shape, k, limit):
         root.shapes = [shape]
         return root
     node = root
+    path = []
     while True:
         node.box = union([node.box, sb])
         if node.shapes is not None:
             break
+        path.append(node)
         best = None
         for c in node.children:
-            grown = area(union([c.box, sb])) - area(c.box)
-            key = (grown, area(c.box))
+            x0, y0, x1, y1 = float_box(c.box)
+            a = (x1 - x0) * (y1 - y0)
+            grown = (max(x1, sb[2]) - min(x0, sb[0])) * (max(y1, sb[3]) - min(y0, sb[1]))
+            key = (grown - a, a)
             if best is None or key < best[0]:
                 best = (key, c)
         node = best[1]
     node.shapes.append(shape)
     if len(node.shapes) > k and (limit == 0 or node.depth < limit):
         build(node, node.shapes, k, limit)
+    below = node
+    scapegoat = None
+    for a in reversed(path):
+        n = count(a)
+        if n >= max(16, 3 * (k + 1)) and count(below) > LOPSIDED * n:
+            scapegoat = a
+        below = a
+    if scapegoat is not None:
+        build(scapegoat, leaf_order(scapegoat), k, limit)
     return root
 
 
