@@ -259,6 +259,10 @@ public:
   void construct(const std::vector<T> &elements) {
     clear();
     if (elements.empty()) return;
+    // About 4.5 n / (k + 1) nodes come out of a build: reserve them once.
+    const std::size_t expected = elements.size() * 9 / (2 * std::size_t(split_threshold_) + 2) + 16;
+    nodes_.reserve(expected);
+    info_.reserve(expected);
     root_ = new_node(0, -1, 0);
     size_ = elements.size();
     build_subtree(root_, std::vector<T>(elements));
@@ -310,6 +314,7 @@ public:
     if (!info_[root_].box.overlaps(box)) return false;
     const float lo_x = bvh_detail::float_down(box.getMin().x), lo_y = bvh_detail::float_down(box.getMin().y);
     const float hi_x = bvh_detail::float_up(box.getMax().x), hi_y = bvh_detail::float_up(box.getMax().y);
+    const float mid_x = 0.5f * (lo_x + hi_x), mid_y = 0.5f * (lo_y + hi_y);
     bvh_detail::IndexStack stack;
     int n = root_;
     for (;;) {
@@ -325,9 +330,22 @@ public:
                            (lo_y <= node.hi_y[c]))
                   << c;
         hits &= (1u << node.num_children) - 1;
-        if (hits & 4u) stack.push(node.child[2]);
-        if (hits & 2u) stack.push(node.child[1]);
-        if (hits & 1u) stack.push(node.child[0]);
+        // Visit first the children whose box holds the probe's centre: a
+        // hit there ends the search early, and most probes of a sampling
+        // run are rejected.
+        unsigned near = 0;
+        for (int c = 0; c < 3; ++c)
+          near |= unsigned((node.lo_x[c] <= mid_x) & (mid_x <= node.hi_x[c]) & (node.lo_y[c] <= mid_y) &
+                           (mid_y <= node.hi_y[c]))
+                  << c;
+        near &= hits;
+        const unsigned far = hits & ~near;
+        if (far & 4u) stack.push(node.child[2]);
+        if (far & 2u) stack.push(node.child[1]);
+        if (far & 1u) stack.push(node.child[0]);
+        if (near & 4u) stack.push(node.child[2]);
+        if (near & 2u) stack.push(node.child[1]);
+        if (near & 1u) stack.push(node.child[0]);
       }
       if (stack.empty()) return false;
       n = stack.pop();
@@ -620,25 +638,21 @@ private:
   /// whose order is the "input position" for ties.
   void build_subtree(int at, std::vector<T> &&shapes) {
     const std::size_t count = shapes.size();
-    std::vector<Point> &center = scratch_.value.center;
-    std::vector<BoundingBox> &box = scratch_.value.box;
-    std::vector<std::uint32_t> &order = scratch_.value.order;
+    // Each shape's centre, box and input position travel together, so the
+    // selections and box scans below stream through memory instead of
+    // chasing indices.
+    std::vector<Item> &items = scratch_.value.items;
     std::vector<Task> &tasks = scratch_.value.tasks;
-    center.resize(count);
-    box.resize(count);
-    order.resize(count);
-    for (std::size_t i = 0; i < count; ++i) {
-      center[i] = shapes[i].getCenter();
-      box[i] = shapes[i].getBox();
-      order[i] = std::uint32_t(i);
-    }
+    items.resize(count);
+    for (std::size_t i = 0; i < count; ++i) items[i] = Item{shapes[i].getCenter(), shapes[i].getBox(), std::uint32_t(i)};
     tasks.clear();
-    tasks.push_back({at, 0, count, 0u, Key{&center, 0, false}, false});
+    tasks.push_back({at, 0, count, 0u, Key{0, false}, false});
+    const auto first = items.begin();
     while (!tasks.empty()) {
       const Task t = tasks.back();
       tasks.pop_back();
       BoundingBox node_box;
-      for (std::size_t i = t.begin; i < t.end; ++i) node_box.extend(box[order[i]]);
+      for (std::size_t i = t.begin; i < t.end; ++i) node_box.extend(items[i].box);
       const std::size_t n = t.end - t.begin;
       Info &in = info_[t.node];
       in.box = node_box;
@@ -648,27 +662,26 @@ private:
       if (n <= std::size_t(split_threshold_) || !may_split_at(depth)) {
         // Selection left the range unordered; restore the parent's order.
         if (t.has_parent_key)
-          std::sort(order.begin() + long(t.begin), order.begin() + long(t.end), t.parent_key);
+          std::sort(first + long(t.begin), first + long(t.end), t.parent_key);
         else
-          std::sort(order.begin() + long(t.begin), order.begin() + long(t.end));
+          std::sort(first + long(t.begin), first + long(t.end),
+                    [](const Item &a, const Item &b) { return a.index < b.index; });
         std::vector<T> &leaf = in.shapes;
         leaf.clear();
         // A leaf that may still split never holds more than k + 1 shapes.
         leaf.reserve(may_split_at(depth) ? std::size_t(split_threshold_) + 1 : n);
-        for (std::size_t i = t.begin; i < t.end; ++i) leaf.push_back(std::move(shapes[order[i]]));
+        for (std::size_t i = t.begin; i < t.end; ++i) leaf.push_back(std::move(shapes[items[i].index]));
         nodes_[t.node].num_children = 0;
         continue;
       }
       const int axis = node_box.dx() >= node_box.dy() ? 0 : 1;
-      const Key key{&center, axis, (t.axes_used & (2u >> axis)) != 0};
+      const Key key{axis, (t.axes_used & (2u >> axis)) != 0};
       const std::size_t base = n / 3, extra = n % 3;
       std::size_t cut[4];
       cut[0] = t.begin;
       for (int g = 0; g < 3; ++g) cut[g + 1] = cut[g] + base + (std::size_t(g) < extra ? 1 : 0);
-      std::nth_element(order.begin() + long(cut[0]), order.begin() + long(cut[1]), order.begin() + long(cut[3]),
-                       key);
-      std::nth_element(order.begin() + long(cut[1]), order.begin() + long(cut[2]), order.begin() + long(cut[3]),
-                       key);
+      std::nth_element(first + long(cut[0]), first + long(cut[1]), first + long(cut[3]), key);
+      std::nth_element(first + long(cut[1]), first + long(cut[2]), first + long(cut[3]), key);
       int children = 0;
       int child_index[3];
       for (int g = 0; g < 3; ++g) {
@@ -688,19 +701,23 @@ private:
     }
   }
 
+  struct Item { // one shape during a build
+    Point center;
+    BoundingBox box;
+    std::uint32_t index; // input position: the last tie-break
+  };
   struct Key { // the order of one node: see build_subtree
-    const std::vector<Point> *center;
     int axis;       // 0: x, 1: y
     bool other_too; // compare the other axis before the input position
-    bool operator()(std::uint32_t a, std::uint32_t b) const {
-      const Point &p = (*center)[a], &q = (*center)[b];
+    bool operator()(const Item &a, const Item &b) const {
+      const Point &p = a.center, &q = b.center;
       const double pa = axis == 0 ? p.x : p.y, qa = axis == 0 ? q.x : q.y;
       if (pa != qa) return pa < qa;
       if (other_too) {
         const double po = axis == 0 ? p.y : p.x, qo = axis == 0 ? q.y : q.x;
         if (po != qo) return po < qo;
       }
-      return a < b;
+      return a.index < b.index;
     }
   };
   struct Task {
@@ -711,9 +728,7 @@ private:
     bool has_parent_key;
   };
   struct BuildScratch {
-    std::vector<Point> center;
-    std::vector<BoundingBox> box;
-    std::vector<std::uint32_t> order;
+    std::vector<Item> items;
     std::vector<Task> tasks;
   };
 

@@ -11,16 +11,23 @@
 // Exit status: 0 on success, 1 when the input file is wrong (FILE:LINE:
 // message on stderr), 2 for a wrong command line. No output file is left
 // behind on any error.
+#include <algorithm>
+#include <cerrno>
+#include <cfloat>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <sstream>
+#include <limits>
+#include <memory>
+#include <new>
 #include <string>
 #include <system_error>
+#include <utility>
 #include <vector>
 
 #include "bvh.h"
@@ -65,85 +72,90 @@ struct UsageError {
 // Reading scenes. The course's loader reads every number into a float and
 // widens it to double; the printed boxes depend on that, so we do the same.
 
-/// One line of a scene file, with a cursor and the error it may raise.
+const std::size_t kMaxLineLength = 4096;
+const float kMaxCoordinate = 1e9f;
+
+// 10^k for k = 0..10. Each is an exact float (5^10 < 2^24), which is what
+// makes LineParser::decimal correctly rounded.
+constexpr float kPowersOfTen[] = {1e0f, 1e1f, 1e2f, 1e3f, 1e4f, 1e5f, 1e6f, 1e7f, 1e8f, 1e9f, 1e10f};
+
+// decimal() relies on one float division being rounded once, in float.
+// intersect.h asserts the same for doubles; this states it for this file.
+static_assert(std::numeric_limits<float>::is_iec559 && FLT_EVAL_METHOD == 0,
+              "the scene reader needs IEEE floats evaluated without extended precision");
+
+// Marks the error paths, so that the readers' hot paths stay small enough
+// to be inlined into one loop per shape kind.
+#if defined(__GNUC__)
+#define BVH_COLD __attribute__((noinline, cold))
+#else
+#define BVH_COLD
+#endif
+
+/// One line of a scene file (without its line end) and a cursor into it.
+/// Each reader skips the blanks (spaces, tabs) before its token. On a
+/// mistake it returns false, sets `error` and leaves the cursor on the
+/// token at fault, so describe_here() can quote it.
+///
+/// The byte at `end` must be readable and be the line end ('\r', '\n') or
+/// a '\0': no token goes on over it, so the hot loops test characters and
+/// not the cursor's distance to the end.
 class LineParser {
 public:
   LineParser(const char *begin, const char *end) : p_(begin), end_(end) {}
 
   /// Skips blanks; true when nothing but blanks is left.
   bool at_end() {
-    skip_blanks();
+    p_ = skip_blanks(p_);
     return p_ == end_;
   }
 
-  /// The keyword `word` (e.g. "pt="), as its own token.
-  bool keyword(const char *word, std::string &error) {
-    skip_blanks();
-    const std::size_t n = std::strlen(word);
-    if (std::size_t(end_ - p_) >= n && std::memcmp(p_, word, n) == 0) {
-      p_ += n;
-      return true;
-    }
-    error = std::string("expected '") + word + "', found " + describe_here();
-    return false;
+  /// The keyword `word` (e.g. "pt="). Blanks after it are optional.
+  template <std::size_t N> bool keyword(const char (&word)[N], std::string &error) {
+    const char *q = p_ = skip_blanks(p_);
+    if (!starts_with(q, word, std::make_index_sequence<N - 1>())) return expected(word, error);
+    p_ = q + N - 1;
+    return true;
   }
 
   /// The punctuation mark `c`, with or without blanks around it.
   bool punct(char c, std::string &error) {
-    skip_blanks();
-    if (p_ < end_ && *p_ == c) {
-      ++p_;
+    const char *q = p_ = skip_blanks(p_);
+    if (*q == c) {
+      p_ = q + 1;
       return true;
     }
-    error = std::string("expected '") + c + "', found " + describe_here();
-    return false;
+    const char word[] = {c, '\0'};
+    return expected(word, error);
   }
 
-  /// A finite number read as a float and widened to double, as the course
-  /// does; magnitudes above 1e9 are refused.
+  /// A finite number of magnitude at most 1e9, read as a float (correctly
+  /// rounded, as the course's `>>` does) and widened to double. Accepted
+  /// forms: those of std::from_chars (decimal, optional exponent) with an
+  /// optional '+' in front; no hexadecimal, inf or nan. `what` names the
+  /// number in messages ("a coordinate").
   bool number(double &value, const char *what, std::string &error) {
-    skip_blanks();
-    const char *start = p_;
-    if (p_ < end_ && *p_ == '+') ++p_; // from_chars refuses '+', the course's >> accepts it
+    p_ = skip_blanks(p_);
     float f = 0;
-    const std::from_chars_result r = std::from_chars(p_, end_, f);
-    if (r.ec == std::errc::result_out_of_range) {
-      p_ = start;
-      error = std::string(what) + " out of range: " + describe_here();
-      return false;
-    }
-    if (r.ec != std::errc() || (r.ptr < end_ && !ends_token(*r.ptr))) {
-      p_ = start;
-      error = std::string("expected ") + what + ", found " + describe_here();
-      return false;
-    }
-    if (!std::isfinite(f)) {
-      p_ = start;
-      error = std::string(what) + " is not a finite number: " + describe_here();
-      return false;
-    }
-    if (std::fabs(f) > 1e9f) {
-      p_ = start;
-      error = std::string(what) + " beyond +-1e9: " + describe_here();
-      return false;
-    }
-    p_ = r.ptr;
+    if (!decimal(f) && !general_number(f, what, error)) return false;
     value = double(f);
     return true;
   }
 
-  /// A colour channel: an integer 0-255.
+  /// A colour channel: an integer 0-255, optionally signed ("+7"; "-0" is
+  /// 0), as the course's `>>` into an int accepts.
   bool channel(int &value, std::string &error) {
-    skip_blanks();
-    const char *start = p_;
-    if (p_ < end_ && *p_ == '+') ++p_;
-    const std::from_chars_result r = std::from_chars(p_, end_, value);
-    if (r.ec != std::errc() || (r.ptr < end_ && !ends_token(*r.ptr)) || value < 0 || value > 255) {
-      p_ = start;
-      error = "expected a colour channel (an integer 0-255), found " + describe_here();
-      return false;
-    }
-    p_ = r.ptr;
+    const char *q = p_ = skip_blanks(p_);
+    const bool negative = *q == '-';
+    if (*q == '-' || *q == '+') ++q;
+    const char *digits = q;
+    int v = 0;
+    // Stops as soon as v > 255, so no run of digits can overflow it.
+    while (is_digit(*q) && v <= 255) v = v * 10 + (*q++ - '0');
+    if (q == digits || (q != end_ && !ends_token(*q)) || v > 255 || (negative && v != 0))
+      return fail("expected a colour channel (an integer 0-255), found ", error);
+    value = v;
+    p_ = q;
     return true;
   }
 
@@ -159,29 +171,107 @@ public:
            channel(c.b, error) && punct('}', error);
   }
 
-  /// Text describing what stands at the cursor, for error messages.
+  /// Text quoting the token at the cursor, for messages: "'x'" (at most 24
+  /// bytes, other bytes than printable ASCII as \xNN, so a message stays one
+  /// printable line), "byte 0xNN" when the token starts with such a byte,
+  /// or "the end of the line".
   std::string describe_here() const {
     if (p_ == end_) return "the end of the line";
-    const unsigned char c = static_cast<unsigned char>(*p_);
-    if (c < 0x20 || c >= 0x7f) {
-      char buf[32];
-      std::snprintf(buf, sizeof buf, "byte 0x%02x", c);
-      return buf;
+    char buf[8];
+    if (!printable(*p_)) {
+      std::snprintf(buf, sizeof buf, "0x%02x", unsigned(static_cast<unsigned char>(*p_)));
+      return std::string("byte ") + buf;
     }
-    const char *q = p_;
-    while (q < end_ && q - p_ < 24 && *q != ' ' && *q != '\t') ++q;
-    return "'" + std::string(p_, q) + "'";
+    std::string s = "'";
+    for (const char *q = p_; q < end_ && q - p_ < 24 && *q != ' ' && *q != '\t'; ++q) {
+      if (q > p_ && is_mark(*q)) break;
+      if (printable(*q)) {
+        s += *q;
+      } else {
+        std::snprintf(buf, sizeof buf, "\\x%02x", unsigned(static_cast<unsigned char>(*q)));
+        s += buf;
+      }
+    }
+    return s + "'";
   }
 
 private:
-  static bool ends_token(char c) { return c == ' ' || c == '\t' || c == '>' || c == '}' || c == '<' || c == '{'; }
-  void skip_blanks() {
-    while (p_ < end_ && (*p_ == ' ' || *p_ == '\t')) ++p_;
+  static bool is_digit(char c) { return unsigned(c - '0') < 10; }
+  static bool is_mark(char c) { return c == '<' || c == '>' || c == '{' || c == '}'; }
+  static bool printable(char c) { return c >= 0x20 && c < 0x7f; }
+  static bool ends_token(char c) { return c == ' ' || c == '\t' || is_mark(c); }
+  // Compares byte by byte, unrolled, stopping at the first difference: it
+  // never reads past the line's end byte, which no keyword contains.
+  template <std::size_t N, std::size_t... I>
+  static bool starts_with(const char *q, const char (&word)[N], std::index_sequence<I...>) {
+    return ((q[I] == word[I]) && ...);
   }
+  // Takes and returns the cursor rather than moving p_: a char read may
+  // alias p_ itself, so a loop on the member would store it every step.
+  const char *skip_blanks(const char *q) const {
+    while (*q == ' ' || *q == '\t') ++q;
+    return q;
+  }
+
+  BVH_COLD bool fail(const char *message, std::string &error) const {
+    error = message + describe_here();
+    return false;
+  }
+  BVH_COLD bool expected(const char *word, std::string &error) const {
+    error = std::string("expected '") + word + "', found " + describe_here();
+    return false;
+  }
+
+  // The fast path for the forms scene files use: [+-]digits[.digits] with
+  // a mantissa below 2^24 and at most 10 decimals. The mantissa m and 10^k
+  // are then exact floats, so the one IEEE division m / 10^k is the
+  // correctly rounded value of the decimal: exactly what from_chars gives
+  // (tests/test_parse.cpp checks millions). Such a value is below 2^24, so
+  // within +-1e9. Anything else returns false without moving the cursor.
+  bool decimal(float &f) {
+    const char *q = p_;
+    const bool negative = *q == '-';
+    if (*q == '-' || *q == '+') ++q;
+    // m may wrap on a long run of digits; the count below then rejects it.
+    std::uint64_t m = 0;
+    const char *first = q;
+    for (; is_digit(*q); ++q) m = m * 10 + std::uint64_t(*q - '0');
+    std::ptrdiff_t digits = q - first, decimals = 0;
+    if (*q == '.') {
+      first = ++q;
+      for (; is_digit(*q); ++q) m = m * 10 + std::uint64_t(*q - '0');
+      decimals = q - first;
+      digits += decimals;
+    }
+    if (digits == 0 || digits > 19 || m >= (1u << 24) || decimals > 10 || (q != end_ && !ends_token(*q)))
+      return false;
+    const float v = float(m) / kPowersOfTen[decimals];
+    f = negative ? -v : v;
+    p_ = q;
+    return true;
+  }
+
+  // Every other form, through std::from_chars: exponents, long mantissas,
+  // and the mistakes, which it reports.
+  BVH_COLD bool general_number(float &f, const char *what, std::string &error) {
+    const char *q = p_;
+    // from_chars refuses a leading '+', which `>>` accepts ("+-3" stays an error).
+    if (end_ - q >= 2 && q[0] == '+' && q[1] != '-') ++q;
+    const std::from_chars_result r = std::from_chars(q, end_, f);
+    if (r.ec == std::errc::result_out_of_range) return fail((std::string(what) + " out of range: ").c_str(), error);
+    if (r.ec != std::errc() || (r.ptr < end_ && !ends_token(*r.ptr)))
+      return fail(("expected " + std::string(what) + ", found ").c_str(), error);
+    if (!std::isfinite(f)) return fail((std::string(what) + " is not a finite number: ").c_str(), error);
+    if (!(std::fabs(f) <= kMaxCoordinate)) return fail((std::string(what) + " beyond +-1e9: ").c_str(), error);
+    p_ = r.ptr;
+    return true;
+  }
+
   const char *p_;
   const char *end_;
 };
 
+/// Reads one disk line's fields.
 bool parse_shape(LineParser &in, Disk &d, std::string &error) {
   Point c;
   double radius = 0;
@@ -193,10 +283,11 @@ bool parse_shape(LineParser &in, Disk &d, std::string &error) {
     error = "negative radius";
     return false;
   }
-  d = Disk(c, radius, color);
+  d = Disk(c, radius + 0.0, color); // + 0.0: "-0" becomes 0, not an r="-0" in the picture
   return true;
 }
 
+/// Reads one triangle line's fields.
 bool parse_shape(LineParser &in, Triangle &t, std::string &error) {
   Point a, b, c;
   Color color;
@@ -205,6 +296,7 @@ bool parse_shape(LineParser &in, Triangle &t, std::string &error) {
   return true;
 }
 
+/// Reads one quad line's fields.
 bool parse_shape(LineParser &in, Quad &q, std::string &error) {
   Point a, b, c, d;
   Color color;
@@ -215,57 +307,115 @@ bool parse_shape(LineParser &in, Quad &q, std::string &error) {
   return true;
 }
 
-const std::size_t kMaxLineLength = 4096;
-
-/// Parses a whole scene held in memory. On error returns false with
-/// `error` = "NAME:LINE: what is wrong" (lines counted from 1).
-template <class T>
-bool parse_scene(const std::string &name, const char *data, std::size_t size, std::vector<T> &out,
-                 std::string &error) {
-  const char *p = data, *end = data + size;
-  for (long line = 1; p < end; ++line) {
-    const char *eol = static_cast<const char *>(std::memchr(p, '\n', std::size_t(end - p)));
-    if (!eol) eol = end;
-    const char *stop = eol;
-    if (stop > p && stop[-1] == '\r') --stop; // CRLF files
-    std::string what;
-    if (std::size_t(stop - p) > kMaxLineLength) {
-      what = "line longer than " + std::to_string(kMaxLineLength) + " characters";
-    } else {
-      LineParser in(p, stop);
-      if (!in.at_end()) {
-        T shape;
-        if (parse_shape(in, shape, what)) {
-          if (in.at_end())
-            out.push_back(shape);
-          else
-            what = "unexpected " + in.describe_here() + " after the shape";
-        }
-      }
-    }
-    if (!what.empty()) {
-      error = name + ":" + std::to_string(line) + ": " + what;
-      return false;
-    }
-    p = eol + 1;
+/// Parses one line, [p, stop), into `out` (nothing for a blank line); the
+/// byte at `stop` is its line end (see LineParser). False with `what` set.
+template <class T> bool parse_line(const char *p, const char *stop, std::vector<T> &out, std::string &what) {
+  if (std::size_t(stop - p) > kMaxLineLength) {
+    what = "line longer than " + std::to_string(kMaxLineLength) + " characters";
+    return false;
   }
+  LineParser in(p, stop);
+  if (in.at_end()) return true;
+  T shape;
+  if (!parse_shape(in, shape, what)) return false;
+  if (!in.at_end()) {
+    what = "unexpected " + in.describe_here() + " after the shape";
+    return false;
+  }
+  out.push_back(shape);
   return true;
 }
 
-template <class T> bool load_scene(const std::string &path, std::vector<T> &out, std::string &error) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
+/// Parses the scene lines in [p, end), the first numbered `line`; the last
+/// may lack its '\n'. Appends the shapes to `out`. Returns the number of the
+/// line that would follow, or 0 with `error` = "NAME:LINE: what is wrong".
+template <class T>
+long parse_lines(const std::string &name, const char *p, const char *end, long line, std::vector<T> &out,
+                 std::string &error) {
+  std::string what;
+  for (; p < end; ++line) {
+    const char *eol = static_cast<const char *>(std::memchr(p, '\n', std::size_t(end - p)));
+    const char *line_end = eol ? eol : end;
+    const char *stop = line_end > p && line_end[-1] == '\r' ? line_end - 1 : line_end; // CRLF files
+    bool ok;
+    if (stop < end) {
+      ok = parse_line(p, stop, out, what);
+    } else {
+      // A last line without its '\n': a copy gets the '\0' end LineParser needs.
+      const std::string last(p, std::min<std::size_t>(std::size_t(stop - p), kMaxLineLength + 1));
+      ok = parse_line(last.data(), last.data() + last.size(), out, what);
+    }
+    if (!ok) {
+      error = name + ":" + std::to_string(line) + ": " + what;
+      return 0;
+    }
+    p = line_end == end ? end : line_end + 1;
+  }
+  return line;
+}
+
+/// Length of a UTF-8 byte-order mark at `p` (3), or 0. Some editors start
+/// files with one; it is skipped.
+std::size_t bom_length(const char *p, const char *end) {
+  return end - p >= 3 && p[0] == '\xef' && p[1] == '\xbb' && p[2] == '\xbf' ? 3 : 0;
+}
+
+/// Parses a whole scene held in memory (`name` is for messages) and appends
+/// its shapes to `out`. On error returns false with `error` = "NAME:LINE:
+/// what is wrong" (lines counted from 1); `out` may then hold the shapes of
+/// the lines before.
+template <class T>
+bool parse_scene(const std::string &name, const char *data, std::size_t size, std::vector<T> &out,
+                 std::string &error) {
+  return parse_lines(name, data + bom_length(data, data + size), data + size, 1, out, error) != 0;
+}
+
+const std::size_t kReadChunk = std::size_t(1) << 20;
+
+/// Reads the scene file `path` and appends its shapes to `out`; false with
+/// `error` ("PATH: cannot open: ...", or parse_scene's message) otherwise.
+/// The file is read `chunk` bytes at a time (tests vary it) and each chunk's
+/// complete lines parsed at once, so memory stays small and a broken file
+/// (even an endless one) fails at its first bad line.
+template <class T>
+bool load_scene(const std::string &path, std::vector<T> &out, std::string &error, std::size_t chunk = kReadChunk) {
+  std::unique_ptr<std::FILE, int (*)(std::FILE *)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!file) {
     error = path + ": cannot open: " + std::strerror(errno);
     return false;
   }
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  if (in.bad()) {
-    error = path + ": read failed";
-    return false;
+  if (chunk < 1) chunk = 1;
+  // An unfinished line waits at the front of the buffer for the rest of it;
+  // one longer than this (a line and its '\r') is an error already.
+  const std::size_t carry_max = kMaxLineLength + 1;
+  std::unique_ptr<char[]> buffer(new char[carry_max + chunk]);
+  char *const buf = buffer.get();
+  std::size_t have = 0;
+  long line = 1;
+  bool at_start = true;
+  for (;;) {
+    const std::size_t got = std::fread(buf + have, 1, chunk, file.get());
+    if (got < chunk && std::ferror(file.get())) {
+      error = path + ": cannot read: " + std::strerror(errno);
+      return false;
+    }
+    const bool eof = got < chunk;
+    have += got;
+    const char *p = buf, *const end = buf + have;
+    if (at_start) {
+      if (have < 3 && !eof) continue; // the byte-order mark may be incomplete
+      p += bom_length(p, end);
+      at_start = false;
+    }
+    const char *stop = end;
+    if (!eof)
+      while (stop > p && stop[-1] != '\n') --stop;
+    if (!(line = parse_lines(path, p, stop, line, out, error))) return false;
+    if (eof) return true;
+    have = std::size_t(end - stop);
+    if (have > carry_max) return parse_lines(path, stop, end, line, out, error) != 0;
+    std::memmove(buf, stop, have);
   }
-  const std::string text = buffer.str();
-  return parse_scene(path, text.data(), text.size(), out, error);
 }
 
 // ---------------------------------------------------------------------------
@@ -427,10 +577,10 @@ bool ends_with(const std::string &s, const std::string &suffix) {
   return s.size() > suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-long parse_integer(const std::string &flag, const char *text, long lo, long hi) {
+long parse_integer(const std::string &flag, const std::string &text, long lo, long hi) {
   long value = 0;
-  const char *end = text + std::strlen(text);
-  const std::from_chars_result r = std::from_chars(text, end, value);
+  const char *end = text.data() + text.size();
+  const std::from_chars_result r = std::from_chars(text.data(), end, value);
   if (r.ec != std::errc() || r.ptr != end || value < lo || value > hi)
     throw UsageError{flag + " needs an integer from " + std::to_string(lo) + " to " + std::to_string(hi) +
                      ", not '" + text + "'"};
@@ -445,54 +595,72 @@ double parse_real(const std::string &flag, const std::string &text) {
   return value;
 }
 
+/// The option's one name (-i is --input, -o is --output), or "" for a word
+/// that is not an option.
+std::string option_name(const std::string &arg) {
+  static const char *const names[] = {"--input", "--output", "--split_threshold", "--depth_limit",
+                                      "--incremental", "--discard_overlap", "--visualize", "--print_tree",
+                                      "--generate", "--seed", "--size", "--overlap"};
+  if (arg == "-i") return "--input";
+  if (arg == "-o") return "--output";
+  for (const char *name : names)
+    if (arg == name) return arg;
+  return "";
+}
+
+/// The command line (without --help, which bvh_main handles first). Every
+/// option may be given once: a repeat is more likely a slip (two -o) than
+/// a wish, so it is an error rather than "the last one wins".
 Options parse_options(int argc, char **argv) {
   Options o;
-  bool depth_given = false;
-  auto value = [&](int &i) -> const char * {
-    if (i + 1 >= argc) throw UsageError{std::string(argv[i]) + " needs a value"};
-    return argv[++i];
-  };
+  std::vector<std::string> seen;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg == "-i" || arg == "--input") {
-      o.input = value(i);
-    } else if (arg == "-o" || arg == "--output") {
-      o.output = value(i);
-    } else if (arg == "--split_threshold") {
-      o.split_threshold = int(parse_integer(arg, value(i), 1, 1000000));
-    } else if (arg == "--depth_limit") {
-      o.depth_limit = int(parse_integer(arg, value(i), 0, 1000000));
-      depth_given = true;
-    } else if (arg == "--incremental") {
+    const std::string name = option_name(arg);
+    if (name.empty()) throw UsageError{"unknown argument '" + arg + "'"};
+    if (std::find(seen.begin(), seen.end(), name) != seen.end()) throw UsageError{arg + " given twice"};
+    seen.push_back(name);
+    // An empty word, or an option where the value should be, means the value was forgotten.
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc || argv[i + 1][0] == '\0' || !option_name(argv[i + 1]).empty())
+        throw UsageError{arg + " needs a value"};
+      return argv[++i];
+    };
+    if (name == "--input") {
+      o.input = value();
+    } else if (name == "--output") {
+      o.output = value();
+    } else if (name == "--split_threshold") {
+      o.split_threshold = int(parse_integer(arg, value(), 1, 1000000));
+    } else if (name == "--depth_limit") {
+      o.depth_limit = int(parse_integer(arg, value(), 0, 1000000));
+    } else if (name == "--incremental") {
       o.incremental = true;
-    } else if (arg == "--discard_overlap") {
+    } else if (name == "--discard_overlap") {
       o.discard_overlap = true;
-    } else if (arg == "--visualize") {
+    } else if (name == "--visualize") {
       o.visualize = true;
-    } else if (arg == "--print_tree") {
+    } else if (name == "--print_tree") {
       o.print_tree = true;
-    } else if (arg == "--generate") {
+    } else if (name == "--generate") {
       o.generate = true;
-      o.kind = value(i);
+      o.kind = value();
       if (o.kind != "disks" && o.kind != "triangles" && o.kind != "quads")
         throw UsageError{"--generate needs a kind: disks, triangles or quads, not '" + o.kind + "'"};
-      o.count = parse_integer("--generate COUNT", value(i), 0, 100000000);
-    } else if (arg == "--seed") {
-      o.seed = std::uint64_t(parse_integer(arg, value(i), 0, 2147483647));
-    } else if (arg == "--size") {
-      const std::string text = value(i);
+      o.count = parse_integer("--generate COUNT", value(), 0, 100000000);
+    } else if (name == "--seed") {
+      o.seed = std::uint64_t(parse_integer(arg, value(), 0, 2147483647));
+    } else if (name == "--size") {
+      const std::string text = value();
       const std::size_t colon = text.find(':');
       if (colon == std::string::npos) throw UsageError{"--size needs MIN:MAX, not '" + text + "'"};
       o.size_lo = parse_real(arg, text.substr(0, colon));
       o.size_hi = parse_real(arg, text.substr(colon + 1));
       if (o.size_lo > o.size_hi) throw UsageError{"--size needs MIN <= MAX, not '" + text + "'"};
-    } else if (arg == "--overlap") {
-      o.overlap = true;
     } else {
-      throw UsageError{"unknown argument '" + arg + "'"};
+      o.overlap = true;
     }
   }
-  (void)depth_given;
   if (o.output.empty()) throw UsageError{"missing -o OUTPUT"};
   if (o.generate) {
     if (!o.input.empty()) throw UsageError{"--generate takes no -i"};
@@ -509,15 +677,43 @@ Options parse_options(int argc, char **argv) {
   return o;
 }
 
-/// Fails early, before any work, when the output cannot be created.
-bool output_writable(const std::string &path) {
-  const std::string temp = path + ".partial";
-  std::ofstream probe(temp, std::ios::binary | std::ios::trunc);
-  if (!probe) {
-    std::cerr << "bvh.out: " << path << ": cannot write: " << std::strerror(errno) << "\n" << kUsage;
+/// Checks, before any work, that the input can be opened, that the output
+/// can be created, and that they are not one file (through a link): the
+/// picture would replace the scene. Sets `error` (exit status 2) if not.
+bool check_files(const Options &o, std::string &error) {
+  std::error_code ec;
+  if (!o.generate) {
+    // fopen succeeds on a directory on Linux; only reading it fails.
+    if (std::filesystem::is_directory(o.input, ec)) {
+      error = o.input + ": cannot open: " + std::strerror(EISDIR);
+      return false;
+    }
+    std::FILE *in = std::fopen(o.input.c_str(), "rb");
+    if (!in) {
+      error = o.input + ": cannot open: " + std::strerror(errno);
+      return false;
+    }
+    std::fclose(in);
+    if (std::filesystem::equivalent(o.input, o.output, ec)) {
+      error = "-i and -o name the same file: '" + o.output + "'";
+      return false;
+    }
+  }
+  if (std::filesystem::is_directory(o.output, ec)) {
+    error = o.output + ": cannot write: " + std::strerror(EISDIR);
     return false;
   }
-  probe.close();
+  // The output is written under this name, then renamed. Whatever holds the
+  // name now (a stale temporary, or a link that would be written through)
+  // goes first; removing a link leaves its target alone.
+  const std::string temp = o.output + ".partial";
+  std::remove(temp.c_str());
+  std::FILE *probe = std::fopen(temp.c_str(), "wbx");
+  if (!probe) {
+    error = o.output + ": cannot write: " + std::strerror(errno);
+    return false;
+  }
+  std::fclose(probe);
   std::remove(temp.c_str());
   return true;
 }
@@ -532,33 +728,36 @@ int bvh_main(int argc, char **argv) {
       return 0;
     }
   Options o;
+  std::string error;
   try {
     o = parse_options(argc, argv);
+    if (!check_files(o, error)) throw UsageError{error};
   } catch (const UsageError &e) {
     std::cerr << "bvh.out: " << e.message << "\n" << kUsage;
     return 2;
   }
-  if (!o.generate && !std::ifstream(o.input, std::ios::binary)) {
-    std::cerr << "bvh.out: " << o.input << ": cannot open: " << std::strerror(errno) << "\n" << kUsage;
-    return 2;
-  }
-  if (!output_writable(o.output)) return 2;
-  if (o.generate) {
-    // Default sizes: a fifth of the canvas covered (no overlap), or about
-    // twice covered (overlap), by COUNT shapes.
-    double hi = o.size_hi, lo = o.size_lo;
-    if (hi < 0) {
-      const double n = double(o.count > 0 ? o.count : 1);
-      hi = std::min(200.0, (o.overlap ? 1400.0 : 420.0) / std::sqrt(n));
-      lo = hi / 2;
+  try {
+    if (o.generate) {
+      // Default sizes: a fifth of the canvas covered (no overlap), or about
+      // twice covered (overlap), by COUNT shapes.
+      double hi = o.size_hi, lo = o.size_lo;
+      if (hi < 0) {
+        const double n = double(o.count > 0 ? o.count : 1);
+        hi = std::min(200.0, (o.overlap ? 1400.0 : 420.0) / std::sqrt(n));
+        lo = hi / 2;
+      }
+      if (o.kind == "disks") return generate<Disk>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
+      if (o.kind == "triangles") return generate<Triangle>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
+      return generate<Quad>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
     }
-    if (o.kind == "disks") return generate<Disk>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
-    if (o.kind == "triangles") return generate<Triangle>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
-    return generate<Quad>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
+    if (ends_with(o.input, ".disks")) return run<Disk>(o);
+    if (ends_with(o.input, ".triangles")) return run<Triangle>(o);
+    return run<Quad>(o);
+  } catch (const std::bad_alloc &) {
+    // A scene too big for this machine's memory.
+    std::cerr << "bvh.out: out of memory\n";
+    return 1;
   }
-  if (ends_with(o.input, ".disks")) return run<Disk>(o);
-  if (ends_with(o.input, ".triangles")) return run<Triangle>(o);
-  return run<Quad>(o);
 }
 
 #ifndef BVH_NO_MAIN
