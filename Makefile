@@ -9,6 +9,8 @@ BUILD ?= build
 
 HEADERS := bvh.h shapes.h intersect.h svg.h
 TESTS := $(BUILD)/test_bvh $(BUILD)/test_intersect
+# test_bvh once more with collision()'s scalar fallback instead of SSE2.
+SCALAR_TESTS := $(BUILD)/test_bvh_scalar
 SAN_TESTS := $(BUILD)/test_bvh_san $(BUILD)/test_intersect_san $(BUILD)/bvh_san.out
 
 .PHONY: all test demo bench clean
@@ -21,6 +23,9 @@ bvh.out: main.cpp $(HEADERS)
 $(BUILD)/test_%: tests/test_%.cpp tests/check.h $(HEADERS) | $(BUILD)
 	$(CXX) $(CXXFLAGS) -I. -Itests $< -o $@
 
+$(BUILD)/test_bvh_scalar: tests/test_bvh.cpp tests/check.h $(HEADERS) | $(BUILD)
+	$(CXX) $(CXXFLAGS) -DBVH_NO_SIMD -I. -Itests $< -o $@
+
 $(BUILD)/test_%_san: tests/test_%.cpp tests/check.h $(HEADERS) | $(BUILD)
 	$(CXX) $(SANITIZE) -I. -Itests $< -o $@
 
@@ -31,7 +36,7 @@ $(BUILD):
 	mkdir -p $(BUILD)
 
 # Every test; ends with "N passed, M failed" and fails when M > 0.
-test: bvh.out $(TESTS) $(SAN_TESTS)
+test: bvh.out $(TESTS) $(SAN_TESTS) $(SCALAR_TESTS)
 	CXX="$(CXX)" COURSE_DATA="$(COURSE_DATA)" BUILD="$(BUILD)" bash tests/run.sh
 
 # The handout's command lines on the bundled inputs/: pictures go to demo/.

@@ -83,6 +83,8 @@ run_case iterator_is_a_cxx20_bidirectional_iterator \
 # 2. Unit and model tests (plain, then under AddressSanitizer + UBSan).
 run_suite test_bvh "$BUILD/test_bvh"
 run_suite test_intersect "$BUILD/test_intersect"
+# collision() without SSE2 (BVH_NO_SIMD): the scalar fallback against the same brute force.
+BVH_TEST_SCALE=0.3 run_suite test_bvh_scalar "$BUILD/test_bvh_scalar"
 BVH_TEST_SCALE=0.3 run_suite test_bvh_sanitized "$BUILD/test_bvh_san"
 BVH_TEST_SCALE=0.3 run_suite test_intersect_sanitized "$BUILD/test_intersect_san"
 
