@@ -32,6 +32,7 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -735,7 +736,7 @@ private:
     std::vector<Item> &items = scratch_.value.items;
     std::vector<Task> &tasks = scratch_.value.tasks;
     items.resize(count);
-    for (std::size_t i = 0; i < count; ++i) items[i] = Item{shapes[i].getCenter(), shapes[i], std::uint32_t(i)};
+    for (std::size_t i = 0; i < count; ++i) items[i] = make_item(shapes[i], std::uint32_t(i));
     tasks.clear();
     tasks.push_back({at, 0, count, 0u, Key{0, false}, false});
     const auto first = items.begin();
@@ -795,11 +796,29 @@ private:
     }
   }
 
-  struct Item { // one shape during a build
-    Point center;        // cached: a triangle's or quad's centre is a sum
+  /// True when T stores its centre (getCenter() returns a reference, as
+  /// Disk's does): items then read it from the shape instead of caching a
+  /// copy, 48 bytes instead of 64 for a disk, which the selections move.
+  static constexpr bool kCenterStored = std::is_reference<decltype(std::declval<const T &>().getCenter())>::value;
+  struct CachedCenter { // a triangle's or quad's centre is a sum: computed once
+    Point center;
     T shape;
     std::uint32_t index; // input position: the last tie-break
+    const Point &centre() const { return center; }
   };
+  struct StoredCenter {
+    T shape;
+    std::uint32_t index;
+    const Point &centre() const { return shape.getCenter(); }
+  };
+  /// One shape during a build.
+  using Item = typename std::conditional<kCenterStored, StoredCenter, CachedCenter>::type;
+  static Item make_item(const T &shape, std::uint32_t index) {
+    if constexpr (kCenterStored)
+      return Item{shape, index};
+    else
+      return Item{shape.getCenter(), shape, index};
+  }
   struct Key { // the order of one node: see build_subtree
     int axis;       // 0: x, 1: y
     bool other_too; // compare the other axis before the input position
@@ -809,10 +828,11 @@ private:
   /// axis costs a branch per coordinate read.
   template <int Axis, bool OtherToo> struct Order {
     bool operator()(const Item &a, const Item &b) const {
-      const double pa = Axis == 0 ? a.center.x : a.center.y, qa = Axis == 0 ? b.center.x : b.center.y;
+      const Point &p = a.centre(), &q = b.centre();
+      const double pa = Axis == 0 ? p.x : p.y, qa = Axis == 0 ? q.x : q.y;
       if (pa != qa) return pa < qa;
       if (OtherToo) {
-        const double po = Axis == 0 ? a.center.y : a.center.x, qo = Axis == 0 ? b.center.y : b.center.x;
+        const double po = Axis == 0 ? p.y : p.x, qo = Axis == 0 ? q.y : q.x;
         if (po != qo) return po < qo;
       }
       return a.index < b.index;
