@@ -381,7 +381,7 @@ public:
     const float lo_x = bvh_detail::float_down(box.getMin().x), lo_y = bvh_detail::float_down(box.getMin().y);
     const float hi_x = bvh_detail::float_up(box.getMax().x), hi_y = bvh_detail::float_up(box.getMax().y);
     const float mid_x = 0.5f * (lo_x + hi_x), mid_y = 0.5f * (lo_y + hi_y);
-    const Probe probe{lo_x, lo_y, hi_x, hi_y, mid_x, mid_y};
+    const Probe probe(lo_x, lo_y, hi_x, hi_y, mid_x, mid_y);
     bvh_detail::IndexStack stack;
     int n = root_;
     for (;;) {
@@ -598,7 +598,17 @@ private:
   }
 
   struct Probe { // a query box rounded outwards to float, and its centre
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+    // Broadcast to 4 lanes once per query, not once per node.
+    Probe(float lx, float ly, float hx, float hy, float mx, float my)
+        : lo_x(_mm_set1_ps(lx)), lo_y(_mm_set1_ps(ly)), hi_x(_mm_set1_ps(hx)), hi_y(_mm_set1_ps(hy)),
+          mid_x(_mm_set1_ps(mx)), mid_y(_mm_set1_ps(my)) {}
+    __m128 lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
+#else
+    Probe(float lx, float ly, float hx, float hy, float mx, float my)
+        : lo_x(lx), lo_y(ly), hi_x(hx), hi_y(hy), mid_x(mx), mid_y(my) {}
     float lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
+#endif
   };
 
   /// For inner node `node`: bit c of `hits` is set when child c's box meets
@@ -612,11 +622,10 @@ private:
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
     const __m128 lx = _mm_loadu_ps(node.lo_x), ly = _mm_loadu_ps(node.lo_y);
     const __m128 hx = _mm_loadu_ps(node.hi_x), hy = _mm_loadu_ps(node.hi_y);
-    const __m128 meets = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, _mm_set1_ps(p.hi_x)), _mm_cmple_ps(_mm_set1_ps(p.lo_x), hx)),
-                                    _mm_and_ps(_mm_cmple_ps(ly, _mm_set1_ps(p.hi_y)), _mm_cmple_ps(_mm_set1_ps(p.lo_y), hy)));
-    const __m128 mx = _mm_set1_ps(p.mid_x), my = _mm_set1_ps(p.mid_y);
-    const __m128 holds = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, mx), _mm_cmple_ps(mx, hx)),
-                                    _mm_and_ps(_mm_cmple_ps(ly, my), _mm_cmple_ps(my, hy)));
+    const __m128 meets = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.hi_x), _mm_cmple_ps(p.lo_x, hx)),
+                                    _mm_and_ps(_mm_cmple_ps(ly, p.hi_y), _mm_cmple_ps(p.lo_y, hy)));
+    const __m128 holds = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.mid_x), _mm_cmple_ps(p.mid_x, hx)),
+                                    _mm_and_ps(_mm_cmple_ps(ly, p.mid_y), _mm_cmple_ps(p.mid_y, hy)));
     hits = unsigned(_mm_movemask_ps(meets)) & live;
     near = unsigned(_mm_movemask_ps(holds)) & hits;
 #else
