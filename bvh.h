@@ -81,7 +81,9 @@ private:
 /// most of W2's 6x memory over the shapes), and the slack is one block.
 template <class X> class BlockVector {
 public:
+  /// Empty, no block.
   BlockVector() = default;
+  /// Deep copy.
   BlockVector(const BlockVector &other) : size_(other.size_) {
     blocks_.reserve(other.blocks_.size());
     for (const auto &b : other.blocks_) {
@@ -89,14 +91,17 @@ public:
       std::copy(b.get(), b.get() + kBlock, blocks_.back().get());
     }
   }
+  /// Takes `other`'s blocks; `other` is left empty.
   BlockVector(BlockVector &&other) noexcept : blocks_(std::move(other.blocks_)), size_(other.size_) {
     other.blocks_.clear();
     other.size_ = 0;
   }
+  /// Deep copy; self-assignment is safe.
   BlockVector &operator=(const BlockVector &other) {
     if (this != &other) *this = BlockVector(other);
     return *this;
   }
+  /// Takes `other`'s blocks; `other` is left empty.
   BlockVector &operator=(BlockVector &&other) noexcept {
     if (this != &other) {
       blocks_ = std::move(other.blocks_);
@@ -107,10 +112,15 @@ public:
     return *this;
   }
 
+  /// Element i (< size()).
   X &operator[](std::size_t i) { return blocks_[i >> kShift][i & kMask]; }
+  /// Element i (< size()).
   const X &operator[](std::size_t i) const { return blocks_[i >> kShift][i & kMask]; }
+  /// The last element (not empty()).
   X &back() { return (*this)[size_ - 1]; }
+  /// Number of elements.
   std::size_t size() const { return size_; }
+  /// True when there is no element.
   bool empty() const { return size_ == 0; }
   /// Drops every element and block.
   void clear() {
@@ -178,7 +188,8 @@ template <class X> struct Scratch {
 /// `intersect(const T&, const T&)`. Shapes live only in leaves, each exactly
 /// once; every node knows the tight box of its subtree.
 ///
-/// Storage: nodes live in two parallel arrays (bvh_detail::BlockVector). `nodes_` holds what queries
+/// Storage: nodes live in two parallel arrays (bvh_detail::BlockVector).
+/// `nodes_` holds what queries
 /// read, 64 bytes a node (one cache line): the boxes of its children, in
 /// float rounded outwards, and their indices, so a query decides all three
 /// children from one line. `info_` holds the rest: the exact double box,

@@ -472,6 +472,47 @@ TEST(depth_limit_leaves_grow_without_splitting) {
   CHECK_EQ(tree.size(), std::size_t(100));
 }
 
+// The node arrays against std::vector as the model: random appends, writes
+// and pops across block boundaries, then copies and moves.
+TEST(block_vector_behaves_like_a_vector) {
+  const unsigned seed = base_seed() + 7;
+  note("seed " + std::to_string(seed));
+  std::mt19937 rng(seed);
+  bvh_detail::BlockVector<std::vector<int>> blocks;
+  std::vector<std::vector<int>> model;
+  for (int step = 0; step < scaled(20000); ++step) {
+    const unsigned op = rng() % 10;
+    if (op < 6 || model.empty()) {
+      blocks.emplace_back();
+      model.emplace_back();
+      CHECK(blocks.back().empty()); // appended elements start default
+    } else if (op < 9) {
+      // Half the writes go to the last element, so pops drop non-empty ones.
+      const std::size_t i = rng() % 2 ? model.size() - 1 : rng() % model.size();
+      const int v = int(rng() % 1000);
+      blocks[i].push_back(v);
+      model[i].push_back(v);
+    } else {
+      blocks.pop_back();
+      model.pop_back();
+    }
+  }
+  CHECK_EQ(blocks.size(), model.size());
+  bool same = true;
+  for (std::size_t i = 0; i < model.size(); ++i) same = same && blocks[i] == model[i];
+  CHECK(same);
+  bvh_detail::BlockVector<std::vector<int>> copy = blocks;
+  if (!model.empty()) copy[0].push_back(-1); // deep: the original keeps its own
+  CHECK(model.empty() || blocks[0] == model[0]);
+  copy = blocks;
+  const bvh_detail::BlockVector<std::vector<int>> moved = std::move(copy);
+  CHECK(copy.empty());
+  CHECK_EQ(moved.size(), model.size());
+  same = true;
+  for (std::size_t i = 0; i < model.size(); ++i) same = same && moved[i] == model[i];
+  CHECK(same);
+}
+
 int main(int argc, char **argv) {
   std::cout << "seed " << base_seed() << " (set BVH_SEED to change), scale " << scale() << std::endl;
   return run_all_tests(argc, argv);
