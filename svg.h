@@ -23,11 +23,14 @@
 #include "bvh.h"
 #include "shapes.h"
 
-/// Opening of the document: XML declaration and the <svg> element, with a
-/// viewBox so the picture scales to any window.
+/// Opening of the document: XML declaration and the <svg> element. The
+/// viewBox and the max-width/max-height style let a browser shrink the
+/// 1000 x 1000 picture to fit a smaller window (tests/browser_check.py
+/// renders it at two window sizes and finds the whole frame each time).
 inline void render_start(std::ostream &ostr) {
   ostr << "<?xml version=\"1.0\" standalone=\"no\"?>\n"
-          "<svg width=\"1000\" height=\"1000\" viewBox=\"0 0 1000 1000\" version=\"1.1\" "
+          "<svg width=\"1000\" height=\"1000\" viewBox=\"0 0 1000 1000\" "
+          "style=\"max-width:95vw;max-height:95vh\" version=\"1.1\" "
           "xmlns=\"http://www.w3.org/2000/svg\">\n";
 }
 

@@ -184,6 +184,18 @@ else
   bad xmllint_available "xmllint is missing: apt-get install libxml2-utils"
 fi
 
+# A real browser: headless Chromium renders 36_triangles_2 (tests/browser.sh).
+if [ -f "$COURSE_DATA/36.triangles" ]; then browser_data=$COURSE_DATA; else browser_data=inputs; fi
+bash tests/browser.sh "$OUT/browser" "$browser_data" >"$LOGS/browser.log" 2>&1
+while read -r status name rest; do
+  case $status in
+    ok) ok "$name" ;;
+    FAIL) bad "$name" "$rest" ;;
+    skip) skip "browser_*" "$name $rest" ;;
+  esac
+done <"$LOGS/browser.log"
+grep -qE '^(ok|FAIL|skip) ' "$LOGS/browser.log" || bad browser_test "tests/browser.sh printed nothing: see $LOGS/browser.log"
+
 # ---------------------------------------------------------------------------
 # 5. Command-line and input errors: message, exit status, no output file.
 bash tests/cli_errors.sh "$OUT/cli" >"$LOGS/cli_errors.log" 2>&1
