@@ -1,25 +1,35 @@
 #!/usr/bin/env bash
-# tests/cli_errors.sh DIR — bvh.out on wrong command lines and wrong scenes.
-# Each case expects an exit status, a message on stderr matching a pattern,
-# and no output file left behind (an existing one stays untouched). Prints
-# `ok NAME` or `FAIL NAME why` per case; run by tests/run.sh.
+# tests/cli_errors.sh DIR [BINARY [TAG]] — bvh.out on wrong command lines and
+# wrong scenes. Each case expects an exit status, a message on stderr
+# matching a pattern, and no output file left behind (neither the picture nor
+# its temporary; an existing one stays untouched). Prints `ok NAME` or
+# `FAIL NAME why` per case, NAME ending in TAG; run by tests/run.sh once on
+# ./bvh.out and once on the ASan/UBSan build (a sanitizer report makes the
+# exit status or stderr differ, so the case fails).
 set -u
 cd "$(dirname "$0")/.."
 dir=${1:-build/test-out/cli}
+bin=${2:-./bvh.out}
+tag=${3:-}
 rm -rf "$dir"
 mkdir -p "$dir"
 good=inputs/36.disks
 
 # expect NAME STATUS PATTERN -- ARGS...   (the output is $dir/out.html)
 expect() {
-  local name=$1 status=$2 pattern=$3
+  local name=$1$tag status=$2 pattern=$3
   shift 4
   rm -f "$dir"/out.html "$dir"/*.partial
-  ./bvh.out "$@" >"$dir/stdout" 2>"$dir/stderr"
+  timeout 60 "$bin" "$@" >"$dir/stdout" 2>"$dir/stderr"
   local rc=$?
   if [ "$rc" -ne "$status" ]; then
     echo "FAIL $name exit $rc, expected $status: $(head -c 200 "$dir/stderr")"
   elif ! grep -qE -- "$pattern" "$dir/stderr"; then
+    echo "FAIL $name stderr does not match /$pattern/: $(head -c 200 "$dir/stderr")"
+  elif [ "$status" -ne 0 ] && { [ "$(grep -c '^bvh.out: ' "$dir/stderr")" -ne 1 ] ||
+    [ "$(grep -vc -e '^bvh.out: ' -e '^usage: ' -e '^       bvh.out ' -e '^               ' "$dir/stderr")" -ne 0 ]; }; then
+    echo "FAIL $name stderr is not one message (plus the usage): $(head -c 300 "$dir/stderr")"
+  elif [ "$status" -ne 0 ] && grep -qE "runtime error|AddressSanitizer|LeakSanitizer" "$dir/stderr"; then
     echo "FAIL $name stderr does not match /$pattern/: $(head -c 200 "$dir/stderr")"
   elif [ "$status" -ne 0 ] && { [ -e "$dir/out.html" ] || ls "$dir"/*.partial >/dev/null 2>&1; }; then
     echo "FAIL $name an output file was left behind"
@@ -29,6 +39,7 @@ expect() {
 }
 
 o=$dir/out.html
+mkdir -p "$dir/dir.disks"
 expect cli_unknown_flag 2 "unknown argument '--bogus'" -- -i $good -o "$o" --bogus
 expect cli_flag_missing_value 2 "--depth_limit needs a value" -- -i $good -o "$o" --depth_limit
 expect cli_non_integer_threshold 2 "--split_threshold needs an integer" -- -i $good -o "$o" --split_threshold abc
@@ -44,6 +55,16 @@ expect cli_unwritable_output 2 "cannot write" -- -i $good -o "$dir/no/such/dir/o
 expect cli_output_not_html 2 "must end in .html or .svg" -- -i $good -o "$dir/out.txt"
 expect cli_generate_bad_kind 2 "needs a kind" -- --generate circles 10 -o "$dir/x.circles"
 expect cli_usage_shows_on_error 2 "^usage: bvh.out" -- --nonsense
+expect cli_input_flag_missing_value 2 "-i needs a value|--input needs a value" -- -o "$o" -i
+expect cli_output_flag_missing_value 2 "-o needs a value|--output needs a value" -- -i $good -o
+expect cli_negative_threshold 2 "--split_threshold needs an integer from 1" -- -i $good -o "$o" --split_threshold -4
+expect cli_fractional_depth 2 "--depth_limit needs an integer" -- -i $good -o "$o" --depth_limit 2.5
+expect cli_huge_number 2 "--split_threshold needs an integer" -- -i $good -o "$o" --split_threshold 99999999999999999999
+expect cli_empty_number 2 "--depth_limit needs (a value|an integer)" -- -i $good -o "$o" --depth_limit ""
+expect cli_output_under_a_file 2 "cannot write" -- -i $good -o "$good/out.html"
+expect cli_input_is_a_directory 2 "cannot open|cannot read|is a directory" -- -i "$dir/dir.disks" -o "$o"
+expect cli_generate_negative_count 2 "--generate" -- --generate disks -5 -o "$dir/x.disks"
+expect cli_generate_missing_count 2 "--generate" -- --generate disks
 
 # Wrong scenes: FILE:LINE: message, exit 1, no picture.
 bad_scene() { # NAME SUFFIX PATTERN CONTENT
@@ -66,27 +87,46 @@ bad_scene input_trailing_text disks "\.disks:1: unexpected 'extra' after the sha
   'pt= <1 2> radius= 3 color= {1 2 3} extra\n'
 bad_scene input_binary_garbage disks "\.disks:1: expected 'pt=', found byte 0x" '\x01\x02\xff\n'
 bad_scene input_huge_coordinate disks "\.disks:1: a coordinate beyond" 'pt= <1e12 2> radius= 3 color= {1 2 3}\n'
+bad_scene input_infinite_value disks "\.disks:1: a coordinate is not a finite number" 'pt= <1 inf> radius= 3 color= {1 2 3}\n'
+bad_scene input_infinite_radius disks "\.disks:1: a radius out of range" 'pt= <1 2> radius= 1e39 color= {1 2 3}\n'
+bad_scene input_missing_open_bracket disks "\.disks:1: expected '<'" 'pt= 1 2> radius= 3 color= {1 2 3}\n'
+bad_scene input_missing_open_brace quads "\.quads:1: expected '\{'" \
+  'pt= <1 2> pt= <3 4> pt= <5 6> pt= <7 8> color= 1 2 3}\n'
+bad_scene input_missing_close_brace disks "\.disks:1: expected '\}'" 'pt= <1 2> radius= 3 color= {1 2 3\n'
+bad_scene input_missing_keyword disks "\.disks:1: expected 'radius='" 'pt= <1 2> 3 color= {1 2 3}\n'
+bad_scene input_misspelt_keyword disks "\.disks:1: expected 'color='" 'pt= <1 2> radius= 3 colour= {1 2 3}\n'
+bad_scene input_negative_colour disks "\.disks:1: expected a colour channel" 'pt= <1 2> radius= 3 color= {1 -2 3}\n'
+bad_scene input_fractional_colour disks "\.disks:1: expected a colour channel" 'pt= <1 2> radius= 3 color= {1 2.5 3}\n'
+bad_scene input_too_few_colour_channels disks "\.disks:1: expected a colour channel" 'pt= <1 2> radius= 3 color= {1 2}\n'
+bad_scene input_disk_line_in_quads quads "\.quads:1: expected 'pt='" 'pt= <1 2> radius= 3 color= {1 2 3}\n'
+bad_scene input_nul_byte triangles "\.triangles:1: " 'pt= <1\x002> pt= <3 4> pt= <5 6> color= {1 2 3}\n'
+bad_scene input_invalid_utf8 disks "\.disks:1: " 'pt= <1 2> radius= 3 color= {1 2 3} \xc3\x28\n'
+bad_scene input_error_line_number_after_blank_and_crlf_lines disks "\.disks:4: negative radius" \
+  'pt= <1 2> radius= 3 color= {1 2 3}\r\n\r\n\npt= <1 2> radius= -1 color= {1 2 3}\r\n'
+bad_scene input_truncated_last_line disks "\.disks:2: " 'pt= <1 2> radius= 3 color= {1 2 3}\npt= <1 2> rad'
+long_line=$(printf 'pt= <1 2> radius= 3 color= {1 2 3}%5000s' '')
+bad_scene input_over_long_line disks "\.disks:1: line longer than" "$long_line\n"
 
 # An error keeps an existing picture as it was.
 echo keep >"$o"
 printf 'pt= <x> radius= 1 color= {1 2 3}\n' >"$dir/broken.disks"
-./bvh.out -i "$dir/broken.disks" -o "$o" >/dev/null 2>&1
-if [ "$(cat "$o")" = keep ]; then echo "ok input_error_keeps_existing_output"; else
-  echo "FAIL input_error_keeps_existing_output the old file was replaced"; fi
+"$bin" -i "$dir/broken.disks" -o "$o" >/dev/null 2>&1
+if [ "$(cat "$o")" = keep ]; then echo "ok input_error_keeps_existing_output$tag"; else
+  echo "FAIL input_error_keeps_existing_output$tag the old file was replaced"; fi
 
 # Accepted: CRLF, blank lines, trailing blanks, an empty scene.
 printf 'pt= <1 2> radius= 3 color= {1 2 3}\r\n\r\n  pt=  < 4 5 >  radius=  1  color=  { 0 0 0 }   \n' >"$dir/crlf.disks"
-if ./bvh.out -i "$dir/crlf.disks" -o "$o" --depth_limit 2 --print_tree >"$dir/stdout" 2>&1 &&
+if "$bin" -i "$dir/crlf.disks" -o "$o" --depth_limit 2 --print_tree >"$dir/stdout" 2>&1 &&
   grep -q "^node count:            1$" "$dir/stdout" && grep -q "elements: \[< -2.0  -1.0> <  4.0   5.0>\] \[<  3.0   4.0> <  5.0   6.0>\]" "$dir/stdout"; then
-  echo "ok input_crlf_blank_lines_and_spacing_accepted"
+  echo "ok input_crlf_blank_lines_and_spacing_accepted$tag"
 else
-  echo "FAIL input_crlf_blank_lines_and_spacing_accepted $(head -c 300 "$dir/stdout")"
+  echo "FAIL input_crlf_blank_lines_and_spacing_accepted$tag $(head -c 300 "$dir/stdout")"
 fi
 : >"$dir/empty.quads"
-if ./bvh.out -i "$dir/empty.quads" -o "$o" --depth_limit 3 --print_tree >"$dir/stdout" 2>&1 &&
+if "$bin" -i "$dir/empty.quads" -o "$o" --depth_limit 3 --print_tree >"$dir/stdout" 2>&1 &&
   [ "$(cat "$dir/stdout")" = "$(printf 'node count:            0\nmax depth:             0\ninner node area:   0.000\nleaf node area:    0.000')" ] &&
   grep -q "</svg>" "$o"; then
-  echo "ok input_empty_scene_is_an_empty_tree"
+  echo "ok input_empty_scene_is_an_empty_tree$tag"
 else
-  echo "FAIL input_empty_scene_is_an_empty_tree $(head -c 300 "$dir/stdout")"
+  echo "FAIL input_empty_scene_is_an_empty_tree$tag $(head -c 300 "$dir/stdout")"
 fi

@@ -198,7 +198,11 @@ grep -qE '^(ok|FAIL|skip) ' "$LOGS/browser.log" || bad browser_test "tests/brows
 
 # ---------------------------------------------------------------------------
 # 5. Command-line and input errors: message, exit status, no output file.
-bash tests/cli_errors.sh "$OUT/cli" >"$LOGS/cli_errors.log" 2>&1
+# Every case twice: on bvh.out and on the ASan/UBSan build of it.
+{
+  bash tests/cli_errors.sh "$OUT/cli" ./bvh.out
+  bash tests/cli_errors.sh "$OUT/cli_san" "$BUILD/bvh_san.out" _sanitized
+} >"$LOGS/cli_errors.log" 2>&1
 while read -r status name rest; do
   case $status in
     ok) ok "$name" ;;
