@@ -7,6 +7,7 @@
 // runs more random cases, 0.1 is for valgrind). Every randomized case prints
 // its seed and case number with any failure.
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <iomanip>
 #include <random>
@@ -461,6 +462,41 @@ TEST(deep_trees_do_not_recurse) {
   copy.statistics(sink, true);
   CHECK(copy.validate());
   CHECK(copy.collision(Disk(Point(0.01 * (n / 2), 0.01 * (n / 2)), 0, Color())));
+}
+
+TEST(sorted_insert_of_200k_shapes_stays_shallow) {
+  // The hostile case: 200,000 shapes inserted in sorted order, no
+  // depth limit, the most nodes (split_threshold 1). Partial rebuilds keep
+  // the height logarithmic, so nothing below is quadratic; the copy,
+  // assignment, both iteration directions, statistics and destruction are
+  // iterative, so nothing can overflow the stack either.
+  const int n = scaled(200000);
+  BVH<Disk> tree(1, BVH<Disk>::unlimited);
+  for (int i = 0; i < n; ++i) tree.insert(Disk(Point(0.004 * i, 0.004 * i), 0.001, Color(i % 256, 0, 0)));
+  CHECK_EQ(tree.size(), std::size_t(n));
+  const double log3n = std::log(double(n)) / std::log(3.0);
+  note("height " + std::to_string(tree.height()) + " for " + std::to_string(n) + " shapes");
+  CHECK(tree.height() <= int(3 * log3n) + 2);
+  CHECK(tree.validate());
+  BVH<Disk> copy(tree);
+  BVH<Disk> assigned(4, 3);
+  assigned = copy;
+  std::size_t forward = 0, backward = 0;
+  for (BVH<Disk>::iterator it = assigned.begin(); it != assigned.end(); ++it) ++forward;
+  for (BVH<Disk>::iterator it = assigned.end(); it != assigned.begin();) {
+    --it;
+    ++backward;
+  }
+  CHECK_EQ(forward, std::size_t(n));
+  CHECK_EQ(backward, std::size_t(n));
+  std::ostringstream sink;
+  assigned.statistics(sink, true);
+  CHECK(sink.str().size() > std::size_t(n));
+  BVH<Disk> moved(std::move(copy));
+  CHECK(moved.validate());
+  CHECK(copy.empty());
+  CHECK(moved.collision(Disk(Point(0.004 * (n / 3), 0.004 * (n / 3)), 0, Color())));
+  CHECK(!moved.collision(Disk(Point(0.004 * (n / 3) + 0.01, 0.004 * (n / 3) - 0.01), 0.001, Color())));
 }
 
 TEST(depth_limit_leaves_grow_without_splitting) {
