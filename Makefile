@@ -13,7 +13,7 @@ TESTS := $(BUILD)/test_bvh $(BUILD)/test_intersect
 SCALAR_TESTS := $(BUILD)/test_bvh_scalar
 SAN_TESTS := $(BUILD)/test_bvh_san $(BUILD)/test_intersect_san $(BUILD)/bvh_san.out
 
-.PHONY: all test demo bench clean
+.PHONY: all test demo bench clean fuzz
 
 all: bvh.out
 
@@ -38,6 +38,21 @@ $(BUILD):
 # Every test; ends with "N passed, M failed" and fails when M > 0.
 test: bvh.out $(TESTS) $(SAN_TESTS) $(SCALAR_TESTS)
 	CXX="$(CXX)" COURSE_DATA="$(COURSE_DATA)" BUILD="$(BUILD)" bash tests/run.sh
+
+# libFuzzer on the scene parser, the tree built from what it accepts and the
+# command-line parser (tests/fuzz_parser.cpp; needs clang++ and its libFuzzer
+# runtime: apt-get install clang libclang-rt-14-dev). New inputs go to
+# $(BUILD)/fuzz-work, findings to $(BUILD)/fuzz-crash-*. make test runs it too.
+FUZZ_SECONDS ?= 60
+FUZZ_CXX ?= clang++
+$(BUILD)/fuzz_parser: tests/fuzz_parser.cpp main.cpp $(HEADERS) | $(BUILD)
+	$(FUZZ_CXX) -std=c++17 -O1 -g -Wall -Wextra -pedantic -fsanitize=fuzzer,address,undefined \
+	  -fno-sanitize-recover=all -I. $< -o $@
+
+fuzz: $(BUILD)/fuzz_parser
+	mkdir -p $(BUILD)/fuzz-work
+	$(BUILD)/fuzz_parser -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 \
+	  -artifact_prefix=$(BUILD)/fuzz-crash- $(BUILD)/fuzz-work tests/fuzz_corpus
 
 # The handout's command lines on the bundled inputs/: pictures go to demo/.
 demo: bvh.out

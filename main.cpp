@@ -63,8 +63,24 @@ const char *const kHelp =
     "  --overlap                generated shapes may overlap (default: none touch)\n"
     "  --help                   this text\n";
 
-/// A command-line mistake: reported with the usage, exit status 2.
+/// A command-line mistake: reported with the usage, exit status 2. The
+/// message quotes the user's words, so control bytes in them are shown as
+/// \xNN and a huge word is cut: the message stays one readable line.
 struct UsageError {
+  explicit UsageError(const std::string &text) {
+    const std::size_t kMaxShown = 1000;
+    for (std::size_t i = 0; i < text.size() && message.size() < kMaxShown; ++i) {
+      const unsigned char c = static_cast<unsigned char>(text[i]);
+      if (c < 0x20 || c == 0x7f) {
+        char buf[8];
+        std::snprintf(buf, sizeof buf, "\\x%02x", unsigned(c));
+        message += buf;
+      } else {
+        message += char(c);
+      }
+    }
+    if (message.size() >= kMaxShown) message += "...";
+  }
   std::string message;
 };
 

@@ -70,7 +70,8 @@ for compiler in g++ clang++; do
     run_case "warnings_$compiler" bash -c "
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only main.cpp &&
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_bvh.cpp &&
-      $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_intersect.cpp"
+      $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_intersect.cpp &&
+      $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. tests/fuzz_parser.cpp"
   else
     skip "warnings_$compiler" "$compiler is not installed"
   fi
@@ -231,6 +232,29 @@ run_case sanitized_cli_discard_overlap bash -c "
   '$BUILD/bvh_san.out' -i inputs/overlap_1000.triangles -o '$OUT/san.html' --depth_limit 8 --incremental \
     --discard_overlap --print_tree > '$OUT/san.txt' &&
   cmp '$OUT/san.txt' expected_output/inputs/discard_overlap_1000_triangles.txt"
+
+# ---------------------------------------------------------------------------
+# 7. libFuzzer for FUZZ_SECONDS on the parser, the tree and the command line
+# (make fuzz runs the same); skipped with a notice without clang's libFuzzer.
+if command -v clang++ >/dev/null 2>&1 &&
+  echo 'extern "C" int LLVMFuzzerTestOneInput(const char *, unsigned long) { return 0; }' |
+  clang++ -x c++ -fsanitize=fuzzer - -o "$BUILD/fuzz-probe" >/dev/null 2>&1; then
+  rm -f "$BUILD/fuzz-probe"
+  if make -s "$BUILD/fuzz_parser" BUILD="$BUILD" >"$LOGS/fuzz_build.log" 2>&1; then
+    mkdir -p "$BUILD/fuzz-work"
+    log=$(logname fuzz_parser)
+    if "$BUILD/fuzz_parser" -max_total_time="${FUZZ_SECONDS:-60}" -print_final_stats=1 \
+      -artifact_prefix="$BUILD/fuzz-crash-" "$BUILD/fuzz-work" tests/fuzz_corpus >"$log" 2>&1; then
+      ok "fuzz_parser_${FUZZ_SECONDS:-60}s_$(grep -o 'number_of_executed_units: [0-9]*' "$log" | grep -o '[0-9]*$')_runs"
+    else
+      bad fuzz_parser "a finding: see $log and $BUILD/fuzz-crash-*"
+    fi
+  else
+    bad fuzz_parser_build "see $LOGS/fuzz_build.log"
+  fi
+else
+  skip fuzz_parser "clang++ with libFuzzer is not installed (apt-get install clang libclang-rt-14-dev)"
+fi
 
 echo
 [ "$skipped" -gt 0 ] && echo "($skipped skipped: see the notices above)"
