@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "check.h"
+#include "bvh.h"
 #include "intersect.h"
 
 namespace {
@@ -490,6 +491,72 @@ TEST(random_grid_pairs_match_reference) {
   CHECK_EQ(all.unchecked, 0L);
   // Both answers must be common, or the comparison proves little.
   CHECK(all.hits > all.pairs / 5 && all.hits < all.pairs * 4 / 5);
+}
+
+namespace {
+
+/// Discard-overlap sampling of `scene` by the tree (as bvh.out
+/// --incremental --discard_overlap does it) and by an O(n^2) scan that asks
+/// the exact integer reference instead of intersect.h: the kept lists
+/// must be the same, in the same order.
+template <class T> void discard_matches_reference(const std::vector<T> &scene, int split, int depth, Tally &t) {
+  BVH<T> tree(split, depth);
+  std::vector<T> by_tree, by_reference;
+  for (const T &s : scene)
+    if (!tree.collision(s)) {
+      tree.insert(s);
+      by_tree.push_back(s);
+    }
+  for (const T &s : scene) {
+    bool hit = false;
+    for (const T &k : by_reference) {
+      const int r = reference(k, s, false);
+      CHECK(r >= 0);
+      ++t.pairs;
+      if (r == 1) {
+        hit = true;
+        ++t.hits;
+        break;
+      }
+    }
+    if (!hit) by_reference.push_back(s);
+  }
+  CHECK_EQ(by_tree.size(), by_reference.size());
+  bool same = by_tree.size() == by_reference.size();
+  for (std::size_t i = 0; same && i < by_tree.size(); ++i) same = by_tree[i] == by_reference[i];
+  CHECK(same);
+  CHECK(tree.validate());
+}
+
+} // namespace
+
+TEST(integer_grid_discard_survivors_match_reference) {
+  // Small integer grids make touching (shared vertices, collinear edges,
+  // tangent circles) the common case, where a tolerance would decide wrongly.
+  const unsigned long long seed = base_seed() + 2;
+  note(seed_note("integer_grid_discard"));
+  Gen g(seed);
+  Tally t;
+  long kept_scenes = 0;
+  for (int round = 0; round < scaled(24) + 3; ++round) {
+    g.unit = round % 2 ? 1.0 : 0.5;
+    g.extent = 12 + 8 * (round % 4);
+    const int n = int(std::max(30L, scaled(400)));
+    const int split = 1 + round % 5, depth = (round % 3) * 3; // depth 0: unlimited
+    std::vector<Disk> disks(n);
+    std::vector<Triangle> tris(n);
+    std::vector<Quad> quads(n);
+    for (int i = 0; i < n; ++i) g.any(disks[i]);
+    for (int i = 0; i < n; ++i) g.any(tris[i]);
+    for (int i = 0; i < n; ++i) g.any(quads[i]);
+    discard_matches_reference(disks, split, depth, t);
+    discard_matches_reference(tris, split, depth, t);
+    discard_matches_reference(quads, split, depth, t);
+    ++kept_scenes;
+  }
+  std::cout << "  integer-grid discard scenes: " << 3 * kept_scenes << ", reference pairs " << t.pairs
+            << ", rejections " << t.hits << std::endl;
+  CHECK(t.hits > 0);
 }
 
 namespace {
