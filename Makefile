@@ -7,11 +7,11 @@ SANITIZE ?= -std=c++17 -O1 -g -Wall -Wextra -pedantic -fsanitize=address,undefin
 COURSE_DATA ?= ../shared/course
 BUILD ?= build
 
-HEADERS := bvh.h shapes.h intersect.h svg.h
-TESTS := $(BUILD)/test_bvh $(BUILD)/test_intersect
+HEADERS := bvh.h shapes.h intersect.h distance.h svg.h
+TESTS := $(BUILD)/test_bvh $(BUILD)/test_intersect $(BUILD)/test_dynamic
 # test_bvh once more with collision()'s scalar fallback instead of SSE2.
 SCALAR_TESTS := $(BUILD)/test_bvh_scalar
-SAN_TESTS := $(BUILD)/test_bvh_san $(BUILD)/test_intersect_san $(BUILD)/bvh_san.out
+SAN_TESTS := $(BUILD)/test_bvh_san $(BUILD)/test_intersect_san $(BUILD)/test_dynamic_san $(BUILD)/bvh_san.out
 
 .PHONY: all test demo bench clean fuzz
 
@@ -20,13 +20,13 @@ all: bvh.out
 bvh.out: main.cpp $(HEADERS)
 	$(CXX) $(CXXFLAGS) main.cpp -o $@
 
-$(BUILD)/test_%: tests/test_%.cpp tests/check.h $(HEADERS) | $(BUILD)
+$(BUILD)/test_%: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) $(CXXFLAGS) -I. -Itests $< -o $@
 
-$(BUILD)/test_bvh_scalar: tests/test_bvh.cpp tests/check.h $(HEADERS) | $(BUILD)
+$(BUILD)/test_bvh_scalar: tests/test_bvh.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) $(CXXFLAGS) -DBVH_NO_SIMD -I. -Itests $< -o $@
 
-$(BUILD)/test_%_san: tests/test_%.cpp tests/check.h $(HEADERS) | $(BUILD)
+$(BUILD)/test_%_san: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) $(SANITIZE) -I. -Itests $< -o $@
 
 $(BUILD)/bvh_san.out: main.cpp $(HEADERS) | $(BUILD)

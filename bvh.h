@@ -31,6 +31,7 @@
 #include <iterator>
 #include <limits>
 #include <memory>
+#include <queue>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -40,6 +41,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "distance.h"
 #include "intersect.h"
 #include "shapes.h"
 
@@ -416,6 +418,120 @@ public:
     }
   }
 
+  /// Removes the shape at `pos` and returns the iterator to the shape that
+  /// followed it (end() after the last). Every other iterator is
+  /// invalidated, but the remaining shapes keep their iteration order, so
+  /// erasing while iterating (`it = tree.erase(it)`) visits each shape once.
+  /// O(log n) amortized: see erase_at() for the repairs.
+  iterator erase(iterator pos) {
+    const std::size_t rank = rank_of(pos);
+    erase_at(pos.leaf_, pos.index_);
+    return iterator_at(rank);
+  }
+
+  /// Removes every stored shape equal to `value` (operator==) and returns
+  /// how many there were. Only subtrees whose box holds value's box are
+  /// searched.
+  std::size_t erase(const T &value) {
+    std::size_t removed = 0;
+    int leaf;
+    std::size_t index;
+    while (find_equal(value, leaf, index)) {
+      erase_at(leaf, index);
+      ++removed;
+    }
+    return removed;
+  }
+
+  /// Calls f(shape) for every stored shape whose box overlaps `box`
+  /// (touching counts). If f returns bool, returning false stops the search.
+  template <class F> void query(const BoundingBox &box, F &&f) const {
+    visit_overlapping(box, [&](const T &s) { return keep_going(f, s); });
+  }
+
+  /// Calls f(shape) for every stored shape that intersects `shape` (exact,
+  /// touching counts). If f returns bool, returning false stops the search.
+  template <class F> void query(const T &shape, F &&f) const {
+    visit_overlapping(shape.getBox(), [&](const T &s) { return !intersect(s, shape) || keep_going(f, s); });
+  }
+
+  /// Copies every stored shape that intersects `shape` to `out` (an output
+  /// iterator, e.g. std::back_inserter(vector)) and returns its end.
+  template <class Out> Out query_into(const T &shape, Out out) const {
+    query(shape, [&](const T &s) { *out++ = s; });
+    return out;
+  }
+
+  /// A stored shape at the least distance from `p` (distance.h: 0 when p is
+  /// inside or on it), or nullptr when the tree is empty; `*dist` gets the
+  /// distance. Best-first: nodes in order of their box's distance, stopping
+  /// when the next box is farther than the best shape. Among equally near
+  /// shapes it returns one, not a particular one. O(log n) typically.
+  const T *nearest(const Point &p, double *dist = nullptr) const {
+    return best_first([&](const BoundingBox &b) { return distance(p, b); },
+                      [&](const T &s) { return distance(p, s); }, dist);
+  }
+
+  /// The first stored shape met by the ray origin + t * direction, t >= 0
+  /// (t = 0 when the origin lies inside or on a shape), or nullptr when the
+  /// ray meets none; `*t` gets the ray parameter of the hit. Best-first by
+  /// the ray's entry into each box, as nearest().
+  const T *first_hit(const Point &origin, const Point &direction, double *t = nullptr) const {
+    return best_first([&](const BoundingBox &b) { return ray_hit(origin, direction, b); },
+                      [&](const T &s) { return ray_hit(origin, direction, s); }, t);
+  }
+
+  /// Calls f(a, b) once for every unordered pair of stored shapes that
+  /// intersect (exact, touching counts); if f returns bool, false stops.
+  /// A simultaneous traversal of the tree against itself: a pair of nodes
+  /// is opened only when their boxes overlap, so the cost is O(n log n + k)
+  /// for k pairs on well-spread scenes, against O(n^2) for a scan.
+  template <class F> void for_each_overlapping_pair(F &&f) const {
+    if (root_ < 0) return;
+    std::vector<std::pair<int, int>> stack{{root_, root_}};
+    while (!stack.empty()) {
+      auto [a, b] = stack.back();
+      stack.pop_back();
+      const Node &na = nodes_[a];
+      if (a == b) {
+        if (na.num_children == 0) {
+          const std::vector<T> &v = info_[a].shapes;
+          for (std::size_t i = 0; i < v.size(); ++i)
+            for (std::size_t j = i + 1; j < v.size(); ++j)
+              if (v[i].getBox().overlaps(v[j].getBox()) && intersect(v[i], v[j]) && !keep_going(f, v[i], v[j]))
+                return;
+          continue;
+        }
+        for (int c = 0; c < na.num_children; ++c) {
+          stack.push_back({na.child[c], na.child[c]});
+          for (int d = c + 1; d < na.num_children; ++d)
+            if (info_[na.child[c]].box.overlaps(info_[na.child[d]].box)) stack.push_back({na.child[c], na.child[d]});
+        }
+        continue;
+      }
+      const Node &nb = nodes_[b];
+      if (na.num_children == 0 && nb.num_children == 0) {
+        for (const T &s : info_[a].shapes)
+          for (const T &u : info_[b].shapes)
+            if (s.getBox().overlaps(u.getBox()) && intersect(s, u) && !keep_going(f, s, u)) return;
+        continue;
+      }
+      // Open the inner node of the two, the larger box when both are.
+      if (na.num_children == 0 || (nb.num_children != 0 && info_[b].box.getArea() > info_[a].box.getArea()))
+        std::swap(a, b);
+      const Node &open = nodes_[a];
+      for (int c = 0; c < open.num_children; ++c)
+        if (info_[open.child[c]].box.overlaps(info_[b].box)) stack.push_back({open.child[c], b});
+    }
+  }
+
+  /// The number of unordered pairs of stored shapes that intersect.
+  std::size_t count_overlapping_pairs() const {
+    std::size_t k = 0;
+    for_each_overlapping_pair([&](const T &, const T &) { ++k; });
+    return k;
+  }
+
   /// The course's report on stdout: with `print_tree`, one line per node in
   /// pre-order, then node count, max depth and the two area sums of the
   /// surface area heuristic (areas in units of the 1000x1000 canvas).
@@ -709,8 +825,219 @@ private:
     if (scapegoat >= 0) rebuild(scapegoat);
   }
 
-  /// Rebuilds the subtree at `at` from its own shapes, taken in leaf order.
-  void rebuild(int at) {
+  /// f(args...) as "go on?": true unless f returns a bool false.
+  template <class F, class... A> static bool keep_going(F &f, const A &...args) {
+    if constexpr (std::is_same<decltype(f(args...)), bool>::value)
+      return f(args...);
+    else {
+      f(args...);
+      return true;
+    }
+  }
+
+  /// Calls visit(shape) on each shape whose box overlaps `box`, until it
+  /// returns false.
+  template <class V> void visit_overlapping(const BoundingBox &box, V &&visit) const {
+    if (root_ < 0 || !info_[root_].box.overlaps(box)) return;
+    bvh_detail::IndexStack stack;
+    stack.push(root_);
+    while (!stack.empty()) {
+      const int n = stack.pop();
+      const Node &node = nodes_[n];
+      if (node.num_children == 0) {
+        for (const T &s : info_[n].shapes)
+          if (s.getBox().overlaps(box) && !visit(s)) return;
+        continue;
+      }
+      for (int c = node.num_children - 1; c >= 0; --c)
+        if (info_[node.child[c]].box.overlaps(box)) stack.push(node.child[c]);
+    }
+  }
+
+  /// Best-first search for the shape of least `shape_key`, where
+  /// box_key(node box) never exceeds the key of a shape inside the box (up
+  /// to rounding, allowed for by a relative margin). +inf keys are misses.
+  template <class BoxKey, class ShapeKey>
+  const T *best_first(BoxKey &&box_key, ShapeKey &&shape_key, double *out) const {
+    const double inf = std::numeric_limits<double>::infinity();
+    const T *best = nullptr;
+    double best_key = inf;
+    if (root_ >= 0) {
+      using Entry = std::pair<double, int>;
+      std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> heap;
+      const double k0 = box_key(info_[root_].box);
+      if (k0 < inf) heap.push({k0, root_});
+      while (!heap.empty()) {
+        const auto [key, n] = heap.top();
+        heap.pop();
+        if (best && key > best_key * (1 + 1e-12) + 1e-300) break;
+        const Node &node = nodes_[n];
+        if (node.num_children == 0) {
+          for (const T &s : info_[n].shapes) {
+            const double k = shape_key(s);
+            if (k < best_key) {
+              best_key = k;
+              best = &s;
+            }
+          }
+          continue;
+        }
+        for (int c = 0; c < node.num_children; ++c) {
+          const double k = box_key(info_[node.child[c]].box);
+          if (k < inf) heap.push({k, node.child[c]});
+        }
+      }
+    }
+    if (out) *out = best_key;
+    return best;
+  }
+
+  /// Shapes before `pos` in iteration order (size() for end()).
+  std::size_t rank_of(const iterator &pos) const {
+    if (pos.leaf_ < 0) return size_;
+    std::size_t rank = pos.index_;
+    for (int n = pos.leaf_; n != root_; n = info_[n].parent) {
+      const Node &p = nodes_[info_[n].parent];
+      for (int c = 0; c < info_[n].slot; ++c) rank += info_[p.child[c]].count;
+    }
+    return rank;
+  }
+
+  /// The iterator to the shape of rank `rank` (end() past the last).
+  iterator iterator_at(std::size_t rank) const {
+    if (rank >= size_) return end();
+    int n = root_;
+    while (nodes_[n].num_children != 0) {
+      const Node &node = nodes_[n];
+      int c = 0;
+      while (rank >= info_[node.child[c]].count) rank -= info_[node.child[c]].count, ++c;
+      n = node.child[c];
+    }
+    return iterator(this, n, rank);
+  }
+
+  /// Finds a stored shape equal to `value`: its leaf and index.
+  bool find_equal(const T &value, int &leaf, std::size_t &index) const {
+    const BoundingBox box = value.getBox();
+    if (root_ < 0 || !info_[root_].box.contains(box)) return false;
+    bvh_detail::IndexStack stack;
+    stack.push(root_);
+    while (!stack.empty()) {
+      const int n = stack.pop();
+      const Node &node = nodes_[n];
+      if (node.num_children == 0) {
+        const std::vector<T> &v = info_[n].shapes;
+        for (std::size_t i = 0; i < v.size(); ++i)
+          if (v[i] == value) {
+            leaf = n;
+            index = i;
+            return true;
+          }
+        continue;
+      }
+      for (int c = 0; c < node.num_children; ++c)
+        if (info_[node.child[c]].box.contains(box)) stack.push(node.child[c]);
+    }
+    return false;
+  }
+
+  /// Removes shape `index` of leaf `leaf`, then mends the tree:
+  ///  1. counts and tight boxes are refitted from the leaf to the root;
+  ///  2. the highest ancestor left with at most split_threshold shapes, or
+  ///     else the parent of a leaf left empty, is rebuilt from its shapes
+  ///     (a leaf, or 3 children again): no empty leaf, no inner node with
+  ///     too few children or too few shapes;
+  ///  3. the highest ancestor whose largest child now holds more than
+  ///     kLopsided of its shapes is rebuilt, as insert's rebalance_path
+  ///     does, so depth stays O(log n) under any churn.
+  /// Rebuilds here split the shapes in their leaf order (build_in_order), so
+  /// iteration order survives an erase. A rebuild of m shapes costs O(m log
+  /// m) and, as for inserts, needs Omega(m) erases below the node to recur.
+  void erase_at(int leaf, std::size_t index) {
+    std::vector<T> &shapes = info_[leaf].shapes;
+    shapes.erase(shapes.begin() + long(index));
+    if (--size_ == 0) {
+      clear();
+      return;
+    }
+    // 1. Refit, bottom-up; note the ancestors (leaf's parent first).
+    std::vector<int> up;
+    for (int n = leaf; n >= 0; n = info_[n].parent) {
+      Info &in = info_[n];
+      --in.count;
+      BoundingBox box;
+      if (nodes_[n].num_children == 0)
+        for (const T &s : in.shapes) box.extend(s.getBox());
+      else
+        for (int c = 0; c < nodes_[n].num_children; ++c)
+          if (info_[nodes_[n].child[c]].count != 0) box.extend(info_[nodes_[n].child[c]].box);
+      in.box = box;
+      if (in.parent >= 0 && in.count != 0) set_child_box(in.parent, in.slot, box);
+      if (n != leaf) up.push_back(n);
+    }
+    // 2. Structure.
+    int mend = info_[leaf].shapes.empty() ? info_[leaf].parent : -1;
+    for (int a : up)
+      if (info_[a].count <= std::size_t(split_threshold_)) mend = a;
+    if (mend >= 0) rebuild(mend, true);
+    // 3. Balance: the highest lopsided ancestor of what changed.
+    int scapegoat = -1;
+    for (int a = mend >= 0 ? mend : leaf; a >= 0; a = info_[a].parent) {
+      const Node &node = nodes_[a];
+      if (node.num_children == 0 || info_[a].count < min_rebuild()) continue;
+      std::size_t largest = 0;
+      for (int c = 0; c < node.num_children; ++c) largest = std::max(largest, info_[node.child[c]].count);
+      if (double(largest) > kLopsided * double(info_[a].count)) scapegoat = a;
+    }
+    if (scapegoat >= 0) rebuild(scapegoat, true);
+  }
+
+  /// Builds at leaf `at` from `shapes` keeping their order: a node over
+  /// split_threshold (above depth_limit) takes 3 consecutive groups whose
+  /// sizes differ by at most one, as the build rule cuts, but without
+  /// sorting. Used where leaf order must survive (erase); shapes that come
+  /// out of a subtree in leaf order are already spatially grouped.
+  void build_in_order(int at, std::vector<T> &shapes) {
+    struct Range {
+      int node;
+      std::size_t begin, end;
+    };
+    std::vector<Range> tasks{{at, 0, shapes.size()}};
+    while (!tasks.empty()) {
+      const Range t = tasks.back();
+      tasks.pop_back();
+      Info &in = info_[t.node];
+      BoundingBox box;
+      for (std::size_t i = t.begin; i < t.end; ++i) box.extend(shapes[i].getBox());
+      const std::size_t n = t.end - t.begin;
+      in.box = box;
+      in.count = n;
+      if (in.parent >= 0) set_child_box(in.parent, in.slot, box);
+      const int depth = in.depth;
+      if (n <= std::size_t(split_threshold_) || !may_split_at(depth)) {
+        in.shapes.assign(std::make_move_iterator(shapes.begin() + long(t.begin)),
+                         std::make_move_iterator(shapes.begin() + long(t.end)));
+        nodes_[t.node].num_children = 0;
+        continue;
+      }
+      const std::size_t base = n / 3, extra = n % 3;
+      std::size_t cut[4];
+      cut[0] = t.begin;
+      for (int g = 0; g < 3; ++g) cut[g + 1] = cut[g] + base + (std::size_t(g) < extra ? 1 : 0);
+      int children = 0;
+      for (int g = 0; g < 3; ++g) {
+        if (cut[g + 1] == cut[g]) continue;
+        const int child = new_node(depth + 1, t.node, children);
+        nodes_[t.node].child[children++] = child;
+        tasks.push_back({child, cut[g], cut[g + 1]});
+      }
+      nodes_[t.node].num_children = children;
+    }
+  }
+
+  /// Rebuilds the subtree at `at` from its own shapes, taken in leaf order:
+  /// by the build rule, or with `keep_order` by build_in_order.
+  void rebuild(int at, bool keep_order = false) {
     std::vector<T> shapes;
     shapes.reserve(info_[at].count);
     bvh_detail::IndexStack stack;
@@ -725,7 +1052,10 @@ private:
     }
     nodes_[at].num_children = 0;
     info_[at].shapes.clear();
-    build_subtree(at, shapes);
+    if (keep_order)
+      build_in_order(at, shapes);
+    else
+      build_subtree(at, shapes);
   }
 
   /// The build rule (the course's, which its expected output follows). A

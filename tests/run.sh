@@ -71,6 +71,7 @@ for compiler in g++ clang++; do
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only main.cpp &&
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_bvh.cpp &&
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_intersect.cpp &&
+      $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_dynamic.cpp &&
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. tests/fuzz_parser.cpp"
   else
     skip "warnings_$compiler" "$compiler is not installed"
@@ -84,10 +85,12 @@ run_case iterator_is_a_cxx20_bidirectional_iterator \
 # 2. Unit and model tests (plain, then under AddressSanitizer + UBSan).
 run_suite test_bvh "$BUILD/test_bvh"
 run_suite test_intersect "$BUILD/test_intersect"
+run_suite test_dynamic "$BUILD/test_dynamic"
 # collision() without SSE2 (BVH_NO_SIMD): the scalar fallback against the same brute force.
 BVH_TEST_SCALE=0.3 run_suite test_bvh_scalar "$BUILD/test_bvh_scalar"
 BVH_TEST_SCALE=0.3 run_suite test_bvh_sanitized "$BUILD/test_bvh_san"
 BVH_TEST_SCALE=0.3 run_suite test_intersect_sanitized "$BUILD/test_intersect_san"
+BVH_TEST_SCALE=0.5 run_suite test_dynamic_sanitized "$BUILD/test_dynamic_san"
 
 # ---------------------------------------------------------------------------
 # 3. Golden stdout: tests/golden.list on the course's data and on inputs/.
@@ -217,6 +220,7 @@ if command -v valgrind >/dev/null 2>&1; then
   VG=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=all --show-leak-kinds=all)
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_bvh "${VG[@]}" "$BUILD/test_bvh"
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_intersect"
+  BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_dynamic"
   run_case valgrind_bulk_build "${VG[@]}" ./bvh.out -i inputs/1000.triangles -o "$OUT/vg_bulk.html" \
     --depth_limit 4 --visualize --print_tree
   run_case valgrind_incremental "${VG[@]}" ./bvh.out -i inputs/1000.quads -o "$OUT/vg_incremental.html" \

@@ -1,0 +1,361 @@
+// tests/test_dynamic.cpp — erase, queries (box, shape, nearest, first hit)
+// and all-pairs collision, each against a brute-force model on randomized
+// scenes of every shape kind. validate() runs after every step of the
+// insert/erase sequences. Seeds are printed on failure (BVH_SEED changes
+// them; BVH_TEST_SCALE shrinks the runs for valgrind and the sanitizers).
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "bvh.h"
+#include "check.h"
+#include "scenes.h"
+
+namespace {
+
+std::string seed_note(unsigned seed, int round, const char *kind) {
+  return std::string(kind) + " BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
+}
+
+template <class T> const char *kind_name();
+template <> const char *kind_name<Disk>() { return "disks"; }
+template <> const char *kind_name<Triangle>() { return "triangles"; }
+template <> const char *kind_name<Quad>() { return "quads"; }
+
+/// A strict order on shapes by their numbers (points, radius, colour): the
+/// model comparison runs after every step, so it avoids scenes.h's
+/// string keys.
+template <class T> bool shape_less(const T &a, const T &b) {
+  for (int i = 0; i < T::numPoints(); ++i) {
+    if (a.getPoint(i).x != b.getPoint(i).x) return a.getPoint(i).x < b.getPoint(i).x;
+    if (a.getPoint(i).y != b.getPoint(i).y) return a.getPoint(i).y < b.getPoint(i).y;
+  }
+  if (a.getBox().getMax().x != b.getBox().getMax().x) return a.getBox().getMax().x < b.getBox().getMax().x;
+  const Color ca = a.getColor(), cb = b.getColor();
+  if (ca.r != cb.r) return ca.r < cb.r;
+  if (ca.g != cb.g) return ca.g < cb.g;
+  return ca.b < cb.b;
+}
+template <class T> bool same_shapes(std::vector<T> a, std::vector<T> b) {
+  std::sort(a.begin(), a.end(), shape_less<T>);
+  std::sort(b.begin(), b.end(), shape_less<T>);
+  return a == b;
+}
+
+/// Tree parameters for a round: split thresholds 1..6, depth limits
+/// unlimited, small (leaves grow) and moderate.
+void parameters(std::mt19937 &rng, int &split, int &depth) {
+  split = 1 + int(rng() % 6);
+  static const int depths[] = {BVH<Disk>::unlimited, BVH<Disk>::unlimited, 1, 2, 4, 8};
+  depth = depths[rng() % 6];
+}
+
+// ---------------------------------------------------------------------------
+// erase
+
+/// Random insert / erase(iterator) / erase(value) / collision steps against
+/// a vector model; after every step the tree validates and holds the
+/// model's multiset, and iteration order is kept by erase.
+template <class T> void churn_against_model(unsigned seed) {
+  for (int round = 0; round < scaled(12); ++round) {
+    note(seed_note(seed, round, kind_name<T>()));
+    Maker make(seed + unsigned(round), round % 3 == 0 ? 50.0 : 0.0); // a grid: many duplicates
+    std::mt19937 &rng = make.rng;
+    int split, depth;
+    parameters(rng, split, depth);
+    BVH<T> tree(split, depth);
+    std::vector<T> model;
+    if (round % 2) { // start from a bulk build
+      model = make.template scene<T>(int(rng() % 300), 40);
+      tree.construct(model);
+    }
+    const int steps = scaled(600);
+    for (int step = 0; step < steps; ++step) {
+      const unsigned op = unsigned(rng() % 10);
+      if (op < 4 || model.empty()) {
+        T s;
+        make.make(s, 40);
+        tree.insert(s);
+        model.push_back(s);
+      } else if (op < 7) {
+        // erase(iterator) at a random position: the result is the next shape
+        const std::vector<T> before = contents(tree);
+        const std::size_t at = std::size_t(rng() % before.size());
+        auto it = tree.begin();
+        std::advance(it, long(at));
+        auto next = tree.erase(it);
+        std::vector<T> expect = before;
+        expect.erase(expect.begin() + long(at));
+        CHECK(contents(tree) == expect); // the others keep their order
+        if (at < expect.size()) {
+          CHECK(next != tree.end());
+          if (next != tree.end()) CHECK(*next == expect[at]);
+        } else {
+          CHECK(next == tree.end());
+        }
+        model.erase(std::find(model.begin(), model.end(), before[at]));
+      } else if (op < 9) {
+        // erase(value): a stored value (sometimes duplicated) or an absent one
+        T value;
+        if (rng() % 4 == 0)
+          make.make(value, 40);
+        else
+          value = model[rng() % model.size()];
+        const std::size_t expect = std::size_t(std::count(model.begin(), model.end(), value));
+        CHECK_EQ(tree.erase(value), expect);
+        model.erase(std::remove(model.begin(), model.end(), value), model.end());
+      } else {
+        T probe;
+        make.make(probe, 60);
+        bool brute = false;
+        for (const T &k : model) brute = brute || intersect(k, probe);
+        CHECK_EQ(tree.collision(probe), brute);
+      }
+      std::string why;
+      if (!tree.validate(&why)) {
+        note(seed_note(seed, round, kind_name<T>()) + " step " + std::to_string(step) + ": " + why);
+        CHECK(false);
+        return;
+      }
+      CHECK_EQ(tree.size(), model.size());
+      if (!same_shapes(contents(tree), model)) {
+        note(seed_note(seed, round, kind_name<T>()) + " step " + std::to_string(step) + ": contents differ");
+        CHECK(false);
+        return;
+      }
+    }
+  }
+}
+
+TEST(erase_churn_matches_model_disks) { churn_against_model<Disk>(base_seed()); }
+TEST(erase_churn_matches_model_triangles) { churn_against_model<Triangle>(base_seed() + 100); }
+TEST(erase_churn_matches_model_quads) { churn_against_model<Quad>(base_seed() + 200); }
+
+TEST(erase_while_iterating_visits_each_shape_once) {
+  const unsigned seed = base_seed() + 300;
+  Maker make(seed);
+  note("BVH_SEED=" + std::to_string(seed));
+  const std::vector<Disk> shapes = make.scene<Disk>(scaled(2000), 20);
+  for (int split : {1, 4}) {
+    BVH<Disk> tree(split, BVH<Disk>::unlimited);
+    tree.construct(shapes);
+    const std::vector<Disk> order = contents(tree);
+    std::vector<Disk> visited, kept;
+    std::size_t i = 0;
+    for (auto it = tree.begin(); it != tree.end(); ++i) {
+      visited.push_back(*it);
+      if (i % 3 != 0) {
+        it = tree.erase(it); // erase two shapes of three
+      } else {
+        kept.push_back(*it);
+        ++it;
+      }
+    }
+    CHECK(visited == order);
+    CHECK(contents(tree) == kept);
+    CHECK(tree.validate());
+  }
+}
+
+TEST(erase_everything_then_reuse) {
+  Maker make(base_seed() + 400);
+  const std::vector<Triangle> shapes = make.scene<Triangle>(scaled(500), 30);
+  BVH<Triangle> tree(3, BVH<Triangle>::unlimited);
+  tree.construct(shapes);
+  for (const Triangle &t : shapes) {
+    tree.erase(t);
+    CHECK(tree.validate());
+  }
+  CHECK(tree.empty());
+  CHECK(tree.begin() == tree.end());
+  CHECK_EQ(tree.node_count(), std::size_t(0));
+  CHECK(!tree.collision(shapes[0]));
+  for (const Triangle &t : shapes) tree.insert(t);
+  CHECK(tree.validate());
+  CHECK(same_multiset(contents(tree), shapes));
+  // Erasing from the front, one by one, empties it too.
+  while (!tree.empty()) tree.erase(tree.begin());
+  CHECK(tree.validate());
+  CHECK_EQ(tree.size(), std::size_t(0));
+}
+
+TEST(erase_on_a_copy_leaves_the_original) {
+  Maker make(base_seed() + 500);
+  const std::vector<Quad> shapes = make.scene<Quad>(scaled(400), 30);
+  BVH<Quad> tree(4, 6);
+  tree.construct(shapes);
+  BVH<Quad> copy = tree;
+  for (std::size_t i = 0; i < shapes.size(); i += 2) copy.erase(shapes[i]);
+  CHECK(copy.validate());
+  CHECK(tree.validate());
+  CHECK(same_multiset(contents(tree), shapes));
+  CHECK_EQ(copy.size(), shapes.size() / 2);
+}
+
+TEST(erase_by_value_removes_every_duplicate) {
+  BVH<Disk> tree(2, BVH<Disk>::unlimited);
+  const Disk a(Point(10, 10), 5, Color(1, 2, 3)), b(Point(10, 10), 5, Color(3, 2, 1)), c(Point(50, 50), 1, Color());
+  for (int i = 0; i < 7; ++i) tree.insert(a);
+  tree.insert(b);
+  tree.insert(c);
+  CHECK_EQ(tree.erase(a), std::size_t(7)); // equal geometry, other colour: kept
+  CHECK_EQ(tree.erase(a), std::size_t(0));
+  CHECK_EQ(tree.size(), std::size_t(2));
+  CHECK(tree.validate());
+  CHECK_EQ(tree.erase(Disk(Point(99, 99), 1, Color())), std::size_t(0));
+}
+
+// ---------------------------------------------------------------------------
+// queries
+
+template <class T> void queries_against_brute_force(unsigned seed) {
+  for (int round = 0; round < scaled(30); ++round) {
+    note(seed_note(seed, round, kind_name<T>()));
+    Maker make(seed + unsigned(round), round % 4 == 0 ? 25.0 : 0.0);
+    std::mt19937 &rng = make.rng;
+    int split, depth;
+    parameters(rng, split, depth);
+    const int n = round == 0 ? 0 : round == 1 ? 1 : int(rng() % 400);
+    std::vector<T> shapes = make.template scene<T>(n, 30);
+    if (n > 4) shapes[1] = shapes[0]; // a duplicate
+    BVH<T> tree(split, depth);
+    if (round % 2)
+      tree.construct(shapes);
+    else
+      for (const T &s : shapes) tree.insert(s);
+    for (int q = 0; q < 40; ++q) {
+      // query(box)
+      const Point a(make.coord(-50, 1050), make.coord(-50, 1050));
+      const BoundingBox box(a, Point(a.x + make.coord(0, 200), a.y + make.coord(0, 200)));
+      std::vector<T> got, want;
+      tree.query(box, [&](const T &s) { got.push_back(s); });
+      for (const T &s : shapes)
+        if (s.getBox().overlaps(box)) want.push_back(s);
+      CHECK(same_multiset(got, want));
+      // query(shape) and its output-iterator form
+      T probe;
+      make.make(probe, 80);
+      got.clear();
+      want.clear();
+      tree.query_into(probe, std::back_inserter(got));
+      for (const T &s : shapes)
+        if (intersect(s, probe)) want.push_back(s);
+      CHECK(same_multiset(got, want));
+      CHECK_EQ(tree.collision(probe), !want.empty());
+      // early stop: f returning false ends the search after one shape
+      std::size_t calls = 0;
+      tree.query(probe, [&](const T &) { return ++calls < 1; });
+      const std::size_t expect_calls = want.empty() ? 0 : 1;
+      CHECK_EQ(calls, expect_calls);
+      // nearest: a point anywhere, sometimes on a vertex or a centre
+      Point p(make.coord(-100, 1100), make.coord(-100, 1100));
+      if (!shapes.empty() && q % 5 == 0) p = shapes[rng() % shapes.size()].getPoint(0);
+      double d = -1;
+      const T *near = tree.nearest(p, &d);
+      double best = std::numeric_limits<double>::infinity();
+      for (const T &s : shapes) best = std::min(best, distance(p, s));
+      if (shapes.empty()) {
+        CHECK(near == nullptr);
+      } else {
+        CHECK(near != nullptr);
+        if (near) CHECK_EQ(distance(p, *near), d);
+        CHECK(d == best);
+      }
+      // first_hit: rays in random directions, some axis-parallel
+      Point dir(make.coord(-1, 1), make.coord(-1, 1));
+      if (q % 7 == 0) dir = Point(q % 2 ? 1 : 0, q % 2 ? 0 : -1);
+      double t = -1;
+      const T *hit = tree.first_hit(p, dir, &t);
+      double first = std::numeric_limits<double>::infinity();
+      for (const T &s : shapes) first = std::min(first, ray_hit(p, dir, s));
+      CHECK_EQ(hit != nullptr, first < std::numeric_limits<double>::infinity());
+      if (hit) {
+        CHECK(t == first);
+        CHECK_EQ(ray_hit(p, dir, *hit), t);
+      }
+    }
+  }
+}
+
+TEST(queries_match_brute_force_disks) { queries_against_brute_force<Disk>(base_seed() + 600); }
+TEST(queries_match_brute_force_triangles) { queries_against_brute_force<Triangle>(base_seed() + 700); }
+TEST(queries_match_brute_force_quads) { queries_against_brute_force<Quad>(base_seed() + 800); }
+
+TEST(distance_and_ray_hand_cases) {
+  const Disk d(Point(0, 0), 1, Color());
+  CHECK_EQ(distance(Point(3, 4), d), 4.0);
+  CHECK_EQ(distance(Point(1, 0), d), 0.0); // on the circle
+  CHECK_EQ(ray_hit(Point(-5, 0), Point(1, 0), d), 4.0);
+  CHECK_EQ(ray_hit(Point(-5, 0), Point(-1, 0), d), std::numeric_limits<double>::infinity());
+  CHECK_EQ(ray_hit(Point(-5, 1), Point(1, 0), d), 5.0); // grazing the top
+  CHECK_EQ(ray_hit(Point(0.5, 0), Point(1, 0), d), 0.0); // from inside
+  const Quad square(Point(0, 0), Point(2, 0), Point(2, 2), Point(0, 2), Color());
+  CHECK_EQ(distance(Point(5, 6), square), 5.0);
+  CHECK_EQ(distance(Point(1, 1), square), 0.0);
+  CHECK_EQ(ray_hit(Point(-1, 2), Point(1, 0), square), 1.0); // along the top edge
+  CHECK_EQ(ray_hit(Point(-1, -1), Point(1, 1), square), 1.0); // through a vertex
+  const Quad dart(Point(0, 0), Point(4, 2), Point(0, 4), Point(2, 2), Color()); // non-convex
+  CHECK_EQ(distance(Point(1, 2), dart), 0.0 + distance(Point(1, 2), dart)); // defined
+  CHECK(distance(Point(1, 2), dart) > 0);                               // the notch is outside
+  CHECK_EQ(ray_hit(Point(-1, 2), Point(1, 0), dart), 3.0);               // enters at the notch's tip
+  const Triangle segment(Point(0, 0), Point(2, 0), Point(4, 0), Color()); // degenerate
+  CHECK_EQ(distance(Point(1, 3), segment), 3.0);
+  CHECK_EQ(ray_hit(Point(1, 3), Point(0, -1), segment), 3.0);
+  CHECK_EQ(ray_hit(Point(-2, 0), Point(1, 0), segment), 2.0); // along it
+}
+
+// ---------------------------------------------------------------------------
+// all pairs
+
+template <class T> void pairs_against_brute_force(unsigned seed) {
+  for (int round = 0; round < scaled(30); ++round) {
+    note(seed_note(seed, round, kind_name<T>()));
+    Maker make(seed + unsigned(round), round % 3 == 0 ? 20.0 : 0.0);
+    std::mt19937 &rng = make.rng;
+    int split, depth;
+    parameters(rng, split, depth);
+    const int n = round < 2 ? round : int(rng() % 500);
+    std::vector<T> shapes = make.template scene<T>(n, round % 2 ? 60 : 15);
+    if (n > 3) shapes[2] = shapes[1];
+    BVH<T> tree(split, depth);
+    if (round % 2)
+      tree.construct(shapes);
+    else
+      for (const T &s : shapes) tree.insert(s);
+    // Brute force over the tree's own order, so pairs can be named by rank.
+    const std::vector<T> stored = contents(tree);
+    std::size_t brute = 0;
+    for (std::size_t i = 0; i < stored.size(); ++i)
+      for (std::size_t j = i + 1; j < stored.size(); ++j) brute += intersect(stored[i], stored[j]);
+    CHECK_EQ(tree.count_overlapping_pairs(), brute);
+    // Each pair once: the pairs reported, as address pairs, have no repeats.
+    std::vector<std::pair<const T *, const T *>> seen;
+    tree.for_each_overlapping_pair([&](const T &a, const T &b) {
+      seen.push_back(&a < &b ? std::make_pair(&a, &b) : std::make_pair(&b, &a));
+    });
+    std::sort(seen.begin(), seen.end());
+    CHECK(std::adjacent_find(seen.begin(), seen.end()) == seen.end());
+    CHECK_EQ(seen.size(), brute);
+    for (const auto &pr : seen) CHECK(pr.first != pr.second && intersect(*pr.first, *pr.second));
+    // Stopping early.
+    std::size_t calls = 0;
+    tree.for_each_overlapping_pair([&](const T &, const T &) { return ++calls < 3; });
+    const std::size_t expect_calls = std::min<std::size_t>(3, brute);
+    CHECK_EQ(calls, expect_calls);
+  }
+}
+
+TEST(pairs_match_brute_force_disks) { pairs_against_brute_force<Disk>(base_seed() + 900); }
+TEST(pairs_match_brute_force_triangles) { pairs_against_brute_force<Triangle>(base_seed() + 1000); }
+TEST(pairs_match_brute_force_quads) { pairs_against_brute_force<Quad>(base_seed() + 1100); }
+
+} // namespace
+
+int main(int argc, char **argv) {
+  std::cout << "seed " << base_seed() << " (set BVH_SEED to change), scale " << scale() << std::endl;
+  return run_all_tests(argc, argv);
+}
