@@ -38,7 +38,7 @@ namespace {
 
 const char *const kUsage =
     "usage: bvh.out -i SCENE -o PICTURE.html [--split_threshold K] [--depth_limit D]\n"
-    "               [--incremental [--discard_overlap]] [--visualize] [--print_tree]\n"
+    "               [--incremental [--discard_overlap]] [--visualize] [--print_tree] [--pairs]\n"
     "       bvh.out --generate disks|triangles|quads COUNT -o SCENE [--seed S]\n"
     "               [--size MIN:MAX] [--overlap]\n"
     "       bvh.out --help\n";
@@ -57,6 +57,8 @@ const char *const kHelp =
     "                           already kept (Poisson-disk sampling)\n"
     "  --visualize              draw every node's box; colour shapes by their leaf\n"
     "  --print_tree             with the statistics, list every node and its shapes\n"
+    "  --pairs                  print 'overlapping pairs: N', the number of pairs of shapes\n"
+    "                           in the tree that intersect (after the statistics, if any)\n"
     "  --generate KIND COUNT    write COUNT random shapes of KIND (disks, triangles, quads)\n"
     "  --seed S                 random seed for --generate (default 1)\n"
     "  --size MIN:MAX           radius range of generated shapes (default from COUNT)\n"
@@ -559,7 +561,7 @@ struct Options {
   std::string input, output;
   int split_threshold = 4;
   int depth_limit = 0; // 0: unlimited, and no statistics (the course's default)
-  bool incremental = false, discard_overlap = false, visualize = false, print_tree = false;
+  bool incremental = false, discard_overlap = false, visualize = false, print_tree = false, pairs = false;
   bool generate = false, overlap = false;
   std::string kind;
   long count = 0;
@@ -582,6 +584,7 @@ template <class T> int run(const Options &o) {
       if (!o.discard_overlap || !tree.collision(s)) tree.insert(s);
   }
   if (o.depth_limit > 0) tree.statistics(o.print_tree);
+  if (o.pairs) std::cout << "overlapping pairs: " << tree.count_overlapping_pairs() << std::endl;
   if (!write_svg(o.output, tree, o.visualize, &error)) {
     std::cerr << "bvh.out: " << error << "\n";
     return 1;
@@ -616,7 +619,7 @@ double parse_real(const std::string &flag, const std::string &text) {
 std::string option_name(const std::string &arg) {
   static const char *const names[] = {"--input", "--output", "--split_threshold", "--depth_limit",
                                       "--incremental", "--discard_overlap", "--visualize", "--print_tree",
-                                      "--generate", "--seed", "--size", "--overlap"};
+                                      "--generate", "--seed", "--size", "--overlap", "--pairs"};
   if (arg == "-i") return "--input";
   if (arg == "-o") return "--output";
   for (const char *name : names)
@@ -658,6 +661,8 @@ Options parse_options(int argc, char **argv) {
       o.visualize = true;
     } else if (name == "--print_tree") {
       o.print_tree = true;
+    } else if (name == "--pairs") {
+      o.pairs = true;
     } else if (name == "--generate") {
       o.generate = true;
       o.kind = value();

@@ -280,6 +280,19 @@ def discard_overlap(shapes):
     return kept
 
 
+def overlapping_pairs(shapes):
+    """Pairs that intersect exactly, by a sweep along x over the boxes."""
+    boxed = sorted(((box_of(s), s) for s in shapes), key=lambda bs: bs[0][0])
+    count = 0
+    for i, (bi, si) in enumerate(boxed):
+        for bj, sj in boxed[i + 1:]:
+            if bj[0] > bi[2]:
+                break
+            if boxes_touch(bi, bj) and exact_intersect(si, sj):
+                count += 1
+    return count
+
+
 def report(root, print_tree=True):
     lines = []
     count = 0
@@ -308,7 +321,7 @@ def report(root, print_tree=True):
 
 
 def expected_stdout(data, argv):
-    k, limit, incremental, discard = 4, 0, False, False
+    k, limit, incremental, discard, pairs = 4, 0, False, False, False
     scene = None
     i = 0
     while i < len(argv):
@@ -326,12 +339,16 @@ def expected_stdout(data, argv):
             incremental = True
         elif a == "--discard_overlap":
             discard = True
+        elif a == "--pairs":
+            pairs = True
         i += 1
     shapes = load(scene)
-    if limit <= 0:
-        return ""  # unlimited depth: the course prints no statistics
     if discard:
         shapes = discard_overlap(shapes)
+    # --pairs counts the pairs among the shapes in the tree
+    tail = "overlapping pairs: %d\n" % overlapping_pairs(shapes) if pairs else ""
+    if limit <= 0:
+        return tail  # unlimited depth: the course prints no statistics
     root = None
     if incremental:
         for s in shapes:
@@ -339,7 +356,7 @@ def expected_stdout(data, argv):
     elif shapes:
         root = Node(0)
         build(root, shapes, k, limit)
-    return report(root)
+    return report(root) + tail
 
 
 def main():
