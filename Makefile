@@ -13,7 +13,7 @@ TESTS := $(BUILD)/test_bvh $(BUILD)/test_intersect $(BUILD)/test_dynamic
 SCALAR_TESTS := $(BUILD)/test_bvh_scalar
 SAN_TESTS := $(BUILD)/test_bvh_san $(BUILD)/test_intersect_san $(BUILD)/test_dynamic_san $(BUILD)/bvh_san.out
 
-.PHONY: all test demo bench clean fuzz
+.PHONY: all test demo bench clean fuzz bench-dynamic bench-builders
 
 all: bvh.out
 
@@ -91,3 +91,24 @@ $(BUILD)/bench: bench/bench.cpp main.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUI
 	if [ "$$(cat $(BUILD)/bench-peers)" = box2d ]; then lib=-lbox2d; def=-DBENCH_HAVE_BOX2D_LIB; else lib=; def=; fi; \
 	echo "$(CXX) $(BENCH_CXXFLAGS) $$def bench/bench.cpp -o $@ $$lib   ($$info)"; \
 	$(CXX) $(BENCH_CXXFLAGS) $$def -DBENCH_BUILD_INFO="\"$$info\"" bench/bench.cpp -o $@ $$lib
+
+# ---- make bench-dynamic (bench/dynamic.cpp): all-pairs collision against Boost's
+# and Box2D's ways of doing it, and SAH drift under insert/erase churn; the
+# table goes to stdout and bench/results_dynamic.txt. QUICK=1 for a small run.
+$(BUILD)/bench_dynamic: bench/dynamic.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
+	@if [ "$$(cat $(BUILD)/bench-peers)" = box2d ]; then lib=-lbox2d; def=-DBENCH_HAVE_BOX2D_LIB; else lib=; def=; fi; \
+	echo "$(CXX) $(BENCH_CXXFLAGS) $$def bench/dynamic.cpp -o $@ $$lib"; \
+	$(CXX) $(BENCH_CXXFLAGS) $$def bench/dynamic.cpp -o $@ $$lib
+
+bench-dynamic: $(BUILD)/bench_dynamic
+	$(BUILD)/bench_dynamic $(if $(filter-out 0,$(QUICK)),--quick) | tee $(if $(filter-out 0,$(QUICK)),$(BUILD)/results_dynamic.txt,bench/results_dynamic.txt)
+
+# ---- make bench-builders (bench/builders.cpp): course bulk build, SAH bulk build and
+# incremental insertion (random and sorted order) compared by SAH cost, height, build
+# time and probe time, on the course's scenes (COURSE_DATA) and on 10k-1M random
+# disks; writes bench/results_builders.txt and the chart bench/builders.svg.
+$(BUILD)/bench_builders: bench/builders.cpp main.cpp $(HEADERS) | $(BUILD)
+	$(CXX) $(BENCH_CXXFLAGS) bench/builders.cpp -o $@
+
+bench-builders: $(BUILD)/bench_builders
+	$(BUILD)/bench_builders "$(COURSE_DATA)" bench/builders.svg | tee bench/results_builders.txt

@@ -39,6 +39,7 @@ namespace {
 const char *const kUsage =
     "usage: bvh.out -i SCENE -o PICTURE.html [--split_threshold K] [--depth_limit D]\n"
     "               [--incremental [--discard_overlap]] [--visualize] [--print_tree] [--pairs]\n"
+    "               [--build course|sah]\n"
     "       bvh.out --generate disks|triangles|quads COUNT -o SCENE [--seed S]\n"
     "               [--size MIN:MAX] [--overlap]\n"
     "       bvh.out --help\n";
@@ -57,6 +58,8 @@ const char *const kHelp =
     "                           already kept (Poisson-disk sampling)\n"
     "  --visualize              draw every node's box; colour shapes by their leaf\n"
     "  --print_tree             with the statistics, list every node and its shapes\n"
+    "  --build course|sah       how nodes are cut: the course's rule (default), or the\n"
+    "                           binned surface area heuristic (also for insert's splits)\n"
     "  --pairs                  print 'overlapping pairs: N', the number of pairs of shapes\n"
     "                           in the tree that intersect (after the statistics, if any)\n"
     "  --generate KIND COUNT    write COUNT random shapes of KIND (disks, triangles, quads)\n"
@@ -562,6 +565,7 @@ struct Options {
   int split_threshold = 4;
   int depth_limit = 0; // 0: unlimited, and no statistics (the course's default)
   bool incremental = false, discard_overlap = false, visualize = false, print_tree = false, pairs = false;
+  bool sah = false; // --build sah
   bool generate = false, overlap = false;
   std::string kind;
   long count = 0;
@@ -577,6 +581,7 @@ template <class T> int run(const Options &o) {
     return 1;
   }
   BVH<T> tree(o.split_threshold, o.depth_limit);
+  if (o.sah) tree.set_build_rule(BVH<T>::BuildRule::sah);
   if (!o.incremental) {
     tree.construct(shapes);
   } else {
@@ -619,7 +624,7 @@ double parse_real(const std::string &flag, const std::string &text) {
 std::string option_name(const std::string &arg) {
   static const char *const names[] = {"--input", "--output", "--split_threshold", "--depth_limit",
                                       "--incremental", "--discard_overlap", "--visualize", "--print_tree",
-                                      "--generate", "--seed", "--size", "--overlap", "--pairs"};
+                                      "--generate", "--seed", "--size", "--overlap", "--pairs", "--build"};
   if (arg == "-i") return "--input";
   if (arg == "-o") return "--output";
   for (const char *name : names)
@@ -663,6 +668,10 @@ Options parse_options(int argc, char **argv) {
       o.print_tree = true;
     } else if (name == "--pairs") {
       o.pairs = true;
+    } else if (name == "--build") {
+      const std::string rule = value();
+      if (rule != "course" && rule != "sah") throw UsageError{"--build needs course or sah, not '" + rule + "'"};
+      o.sah = rule == "sah";
     } else if (name == "--generate") {
       o.generate = true;
       o.kind = value();

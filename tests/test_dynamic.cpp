@@ -4,10 +4,12 @@
 // insert/erase sequences. Seeds are printed on failure (BVH_SEED changes
 // them; BVH_TEST_SCALE shrinks the runs for valgrind and the sanitizers).
 #include <algorithm>
+#include <cstdlib>
 #include <cmath>
 #include <iterator>
 #include <limits>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -352,6 +354,60 @@ template <class T> void pairs_against_brute_force(unsigned seed) {
 TEST(pairs_match_brute_force_disks) { pairs_against_brute_force<Disk>(base_seed() + 900); }
 TEST(pairs_match_brute_force_triangles) { pairs_against_brute_force<Triangle>(base_seed() + 1000); }
 TEST(pairs_match_brute_force_quads) { pairs_against_brute_force<Quad>(base_seed() + 1100); }
+
+// ---------------------------------------------------------------------------
+// the SAH build rule
+
+double sah_cost(const std::string &stats) {
+  const double inner = std::atof(stats.c_str() + stats.find("inner node area:") + 16);
+  const double leaf = std::atof(stats.c_str() + stats.find("leaf node area:") + 15);
+  return inner + leaf;
+}
+
+template <class T> void sah_build_against_brute_force(unsigned seed) {
+  double course_total = 0, sah_total = 0;
+  for (int round = 0; round < scaled(40); ++round) {
+    note(seed_note(seed, round, kind_name<T>()));
+    Maker make(seed + unsigned(round), round % 5 == 0 ? 40.0 : 0.0); // a grid: duplicate centres
+    std::mt19937 &rng = make.rng;
+    int split, depth;
+    parameters(rng, split, depth);
+    const int n = round < 3 ? round : int(rng() % 700);
+    const std::vector<T> shapes = make.template scene<T>(n, 30);
+    BVH<T> sah(split, depth), course(split, depth), grown(split, depth);
+    sah.set_build_rule(BVH<T>::BuildRule::sah);
+    grown.set_build_rule(BVH<T>::BuildRule::sah);
+    sah.construct(shapes);
+    course.construct(shapes);
+    for (const T &s : shapes) grown.insert(s);
+    std::string why;
+    CHECK(sah.validate(&why));
+    CHECK(grown.validate(&why));
+    if (!why.empty()) note(seed_note(seed, round, kind_name<T>()) + " " + why);
+    CHECK(same_shapes(contents(sah), shapes));
+    CHECK(same_shapes(contents(grown), shapes));
+    for (int q = 0; q < 30; ++q) {
+      T probe;
+      make.make(probe, 60);
+      bool brute = false;
+      for (const T &s : shapes) brute = brute || intersect(s, probe);
+      CHECK_EQ(sah.collision(probe), brute);
+      CHECK_EQ(grown.collision(probe), brute);
+    }
+    std::ostringstream a, b;
+    sah.statistics(a, false);
+    course.statistics(b, false);
+    sah_total += sah_cost(a.str());
+    course_total += sah_cost(b.str());
+  }
+  // What the rule is for: over many scenes, a lower SAH cost than the course's.
+  note("SAH total " + std::to_string(sah_total) + " against the course rule's " + std::to_string(course_total));
+  CHECK(sah_total <= course_total);
+}
+
+TEST(sah_build_valid_and_correct_disks) { sah_build_against_brute_force<Disk>(base_seed() + 1200); }
+TEST(sah_build_valid_and_correct_triangles) { sah_build_against_brute_force<Triangle>(base_seed() + 1300); }
+TEST(sah_build_valid_and_correct_quads) { sah_build_against_brute_force<Quad>(base_seed() + 1400); }
 
 } // namespace
 
