@@ -109,6 +109,15 @@ inline double ray_hit(const Point &origin, const Point &dir, const Quad &q) {
   return bvh_distance_detail::polygon_ray(origin, dir, q);
 }
 
+/// Distance from `p` to the shape held, whichever kind it is.
+inline double distance(const Point &p, const Shape &s) {
+  return s.visit([&](const auto &shape) { return distance(p, shape); });
+}
+/// ray_hit on the shape held, whichever kind it is.
+inline double ray_hit(const Point &origin, const Point &dir, const Shape &s) {
+  return s.visit([&](const auto &shape) { return ray_hit(origin, dir, shape); });
+}
+
 /// Distance from `p` to the box (0 inside or on it).
 inline double distance(const Point &p, const BoundingBox &box) {
   const double dx = std::max({box.getMin().x - p.x, 0.0, p.x - box.getMax().x});

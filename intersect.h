@@ -1,6 +1,7 @@
 // intersect.h — exact intersection tests between the closed shapes of
-// shapes.h: `intersect(a, b)` for every pair of Disk, Triangle and Quad, and
-// the exact orientation predicate they are built on.
+// shapes.h: `intersect(a, b)` for every pair of Disk, Triangle and Quad (and
+// of Shape, which holds any one of them), and the exact orientation
+// predicate they are built on.
 //
 //   #include "intersect.h"
 //   Triangle t(Point(0, 0), Point(10, 0), Point(0, 10));
@@ -394,6 +395,11 @@ inline bool intersect(const Triangle &t, const Quad &q) { return bvh_exact::deta
 
 /// Same as intersect(t, q).
 inline bool intersect(const Quad &q, const Triangle &t) { return intersect(t, q); }
+
+/// Any two shapes of a mixed scene: the predicate of their two kinds.
+inline bool intersect(const Shape &a, const Shape &b) {
+  return a.visit([&](const auto &x) { return b.visit([&](const auto &y) { return intersect(x, y); }); });
+}
 
 #undef BVH_EXACT_COLD
 

@@ -1,5 +1,6 @@
 // main.cpp — bvh.out, the course's command line (CSCI-1200 Homework 8):
-// reads a scene of disks, triangles or quads, builds a BVH in bulk or one
+// reads a scene of disks, triangles or quads (or, in a .shapes file, all
+// three mixed), builds a BVH in bulk or one
 // shape at a time (optionally discarding shapes that touch one already
 // kept: Poisson-disk sampling), prints the course's statistics and writes
 // an SVG picture. It also generates random scenes in the same format.
@@ -40,13 +41,14 @@ const char *const kUsage =
     "usage: bvh.out -i SCENE -o PICTURE.html [--split_threshold K] [--depth_limit D]\n"
     "               [--incremental [--discard_overlap]] [--visualize] [--print_tree] [--pairs]\n"
     "               [--build course|sah]\n"
-    "       bvh.out --generate disks|triangles|quads COUNT -o SCENE [--seed S]\n"
+    "       bvh.out --generate disks|triangles|quads|shapes COUNT -o SCENE [--seed S]\n"
     "               [--size MIN:MAX] [--overlap]\n"
     "       bvh.out --help\n";
 
 const char *const kHelp =
     "Builds a ternary bounding volume hierarchy over the shapes of SCENE (a\n"
-    ".disks, .triangles or .quads file) and draws it to PICTURE.html (SVG).\n"
+    ".disks, .triangles or .quads file, or a .shapes file whose lines may be any of\n"
+    "the three) and draws it to PICTURE.html (SVG).\n"
     "\n"
     "  -i, --input SCENE        the shapes, one per line; the suffix gives their kind\n"
     "  -o, --output FILE        the picture (.html or .svg); with --generate, the scene\n"
@@ -62,7 +64,8 @@ const char *const kHelp =
     "                           binned surface area heuristic (also for insert's splits)\n"
     "  --pairs                  print 'overlapping pairs: N', the number of pairs of shapes\n"
     "                           in the tree that intersect (after the statistics, if any)\n"
-    "  --generate KIND COUNT    write COUNT random shapes of KIND (disks, triangles, quads)\n"
+    "  --generate KIND COUNT    write COUNT random shapes of KIND (disks, triangles, quads,\n"
+    "                           or shapes: each line a random one of the three)\n"
     "  --seed S                 random seed for --generate (default 1)\n"
     "  --size MIN:MAX           radius range of generated shapes (default from COUNT)\n"
     "  --overlap                generated shapes may overlap (default: none touch)\n"
@@ -137,6 +140,19 @@ public:
     if (!starts_with(q, word, std::make_index_sequence<N - 1>())) return expected(word, error);
     p_ = q + N - 1;
     return true;
+  }
+
+  /// True when the next token starts with the keyword `word`; nothing is
+  /// read, so the caller can choose between forms (mixed scenes).
+  template <std::size_t N> bool next_is(const char (&word)[N]) {
+    p_ = skip_blanks(p_);
+    return starts_with(p_, word, std::make_index_sequence<N - 1>());
+  }
+
+  /// Sets `error` to "expected WHAT, found <the token here>"; false.
+  BVH_COLD bool expected_here(const char *what, std::string &error) const {
+    error = std::string("expected ") + what + ", found " + describe_here();
+    return false;
   }
 
   /// The punctuation mark `c`, with or without blanks around it.
@@ -292,13 +308,11 @@ private:
   const char *end_;
 };
 
-/// Reads one disk line's fields.
-bool parse_shape(LineParser &in, Disk &d, std::string &error) {
-  Point c;
+/// Reads a disk line's fields after its centre.
+bool parse_disk_rest(LineParser &in, const Point &c, Disk &d, std::string &error) {
   double radius = 0;
   Color color;
-  if (!in.point(c, error) || !in.keyword("radius=", error) || !in.number(radius, "a radius", error) ||
-      !in.color(color, error))
+  if (!in.keyword("radius=", error) || !in.number(radius, "a radius", error) || !in.color(color, error))
     return false;
   if (radius < 0) {
     error = "negative radius";
@@ -306,6 +320,12 @@ bool parse_shape(LineParser &in, Disk &d, std::string &error) {
   }
   d = Disk(c, radius + 0.0, color); // + 0.0: "-0" becomes 0, not an r="-0" in the picture
   return true;
+}
+
+/// Reads one disk line's fields.
+bool parse_shape(LineParser &in, Disk &d, std::string &error) {
+  Point c;
+  return in.point(c, error) && parse_disk_rest(in, c, d, error);
 }
 
 /// Reads one triangle line's fields.
@@ -325,6 +345,33 @@ bool parse_shape(LineParser &in, Quad &q, std::string &error) {
       !in.color(color, error))
     return false;
   q = Quad(a, b, c, d, color);
+  return true;
+}
+
+/// Reads one line of a mixed scene (.shapes), whose own form says its kind:
+/// a first point followed by `radius=` is a disk; three or four points
+/// followed by `color=` are a triangle or a quad.
+bool parse_shape(LineParser &in, Shape &s, std::string &error) {
+  Point p[4];
+  if (!in.point(p[0], error)) return false;
+  if (in.next_is("radius=")) {
+    Disk d;
+    if (!parse_disk_rest(in, p[0], d, error)) return false;
+    s = d;
+    return true;
+  }
+  int n = 1;
+  for (; n < 4 && in.next_is("pt="); ++n)
+    if (!in.point(p[n], error)) return false;
+  if (n == 1) return in.expected_here("'radius=' or 'pt='", error);
+  if (n == 2) return in.expected_here("'pt=' (a triangle or quad has 3 or 4 points)", error);
+  if (n == 3 && !in.next_is("color=")) return in.expected_here("'pt=' or 'color='", error);
+  Color color;
+  if (!in.color(color, error)) return false;
+  if (n == 3)
+    s = Triangle(p[0], p[1], p[2], color);
+  else
+    s = Quad(p[0], p[1], p[2], p[3], color);
   return true;
 }
 
@@ -484,8 +531,13 @@ std::string format_line(const Point *pts, int n, const Color &color) {
 
 /// Makes one random shape's line: centre anywhere its whole shape fits in
 /// the 1000 x 1000 canvas, size uniform in [lo, hi]. Triangles have their
-/// vertices at jittered thirds of a circle, quads are rotated squares.
+/// vertices at jittered thirds of a circle, quads are rotated squares; for
+/// "shapes", each line is one of the three kinds, equally likely.
 std::string random_line(const std::string &kind, Random &rng, double lo, double hi) {
+  if (kind == "shapes") {
+    static const char *const kinds[] = {"disks", "triangles", "quads"};
+    return random_line(kinds[rng.next() % 3], rng, lo, hi);
+  }
   const double size = rng.uniform(lo, hi);
   const Point c(rng.uniform(size, 1000 - size), rng.uniform(size, 1000 - size));
   const Color color(rng.channel(), rng.channel(), rng.channel());
@@ -675,8 +727,8 @@ Options parse_options(int argc, char **argv) {
     } else if (name == "--generate") {
       o.generate = true;
       o.kind = value();
-      if (o.kind != "disks" && o.kind != "triangles" && o.kind != "quads")
-        throw UsageError{"--generate needs a kind: disks, triangles or quads, not '" + o.kind + "'"};
+      if (o.kind != "disks" && o.kind != "triangles" && o.kind != "quads" && o.kind != "shapes")
+        throw UsageError{"--generate needs a kind: disks, triangles, quads or shapes, not '" + o.kind + "'"};
       o.count = parse_integer("--generate COUNT", value(), 0, 100000000);
     } else if (name == "--seed") {
       o.seed = std::uint64_t(parse_integer(arg, value(), 0, 2147483647));
@@ -702,8 +754,10 @@ Options parse_options(int argc, char **argv) {
   if (o.discard_overlap && !o.incremental) throw UsageError{"--discard_overlap needs --incremental"};
   if (!ends_with(o.output, ".html") && !ends_with(o.output, ".svg"))
     throw UsageError{"the picture's name must end in .html or .svg: '" + o.output + "'"};
-  if (!ends_with(o.input, ".disks") && !ends_with(o.input, ".triangles") && !ends_with(o.input, ".quads"))
-    throw UsageError{"unknown input kind '" + o.input + "': the name must end in .disks, .triangles or .quads"};
+  if (!ends_with(o.input, ".disks") && !ends_with(o.input, ".triangles") && !ends_with(o.input, ".quads") &&
+      !ends_with(o.input, ".shapes"))
+    throw UsageError{"unknown input kind '" + o.input +
+                     "': the name must end in .disks, .triangles, .quads or .shapes"};
   return o;
 }
 
@@ -778,11 +832,13 @@ int bvh_main(int argc, char **argv) {
       }
       if (o.kind == "disks") return generate<Disk>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
       if (o.kind == "triangles") return generate<Triangle>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
-      return generate<Quad>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
+      if (o.kind == "quads") return generate<Quad>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
+      return generate<Shape>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
     }
     if (ends_with(o.input, ".disks")) return run<Disk>(o);
     if (ends_with(o.input, ".triangles")) return run<Triangle>(o);
-    return run<Quad>(o);
+    if (ends_with(o.input, ".quads")) return run<Quad>(o);
+    return run<Shape>(o);
   } catch (const std::bad_alloc &) {
     // A scene too big for this machine's memory.
     std::cerr << "bvh.out: out of memory\n";

@@ -1,6 +1,7 @@
 // shapes.h — the geometry the BVH stores: Point, Color, BoundingBox, Disk,
 // Triangle and Quad, with the names and printing of the course's handout
-// (CSCI-1200 Homework 8), so code written against the handout compiles here.
+// (CSCI-1200 Homework 8), so code written against the handout compiles here;
+// and Shape, any one of the three, for scenes that mix them.
 //
 //   Triangle t(Point(0, 0), Point(10, 0), Point(0, 10), Color(255, 0, 0));
 //   BoundingBox b = t.getBox();          // [<  0.0   0.0> < 10.0  10.0>]
@@ -19,6 +20,8 @@
 #include <limits>
 #include <ostream>
 #include <string>
+#include <utility>
+#include <variant>
 
 /// A point (or vector) in the plane.
 class Point {
@@ -243,6 +246,83 @@ public:
     pts_[3] = d;
     color_ = color;
   }
+};
+
+/// Any one shape: a Disk, a Triangle or a Quad. BVH<Shape> holds a scene
+/// that mixes the three kinds (a .shapes file); every member forwards to the
+/// shape held, so a Shape sorts, prints, draws and intersects (intersect.h)
+/// exactly as the shape itself would.
+///
+///   Shape s = Triangle(Point(0, 0), Point(10, 0), Point(0, 10));
+///   if (const Triangle *t = s.triangle()) std::cout << t->getPoint(1);
+///   s.visit([](const auto &shape) { std::cout << shape.getBox(); });
+class Shape {
+public:
+  /// Which shape a Shape holds; also the order of Shape's alternatives.
+  enum class Kind { disk, triangle, quad };
+  /// A white point (a Disk of radius 0) at the origin.
+  Shape() = default;
+  /// Holds the disk. Implicit: a Disk is a Shape.
+  Shape(const Disk &d) : shape_(d) {}
+  /// Holds the triangle. Implicit: a Triangle is a Shape.
+  Shape(const Triangle &t) : shape_(t) {}
+  /// Holds the quad. Implicit: a Quad is a Shape.
+  Shape(const Quad &q) : shape_(q) {}
+
+  /// The kind of shape held.
+  Kind kind() const { return Kind(shape_.index()); }
+  /// The disk held, or nullptr when it is another kind.
+  const Disk *disk() const { return std::get_if<Disk>(&shape_); }
+  /// The triangle held, or nullptr when it is another kind.
+  const Triangle *triangle() const { return std::get_if<Triangle>(&shape_); }
+  /// The quad held, or nullptr when it is another kind.
+  const Quad *quad() const { return std::get_if<Quad>(&shape_); }
+
+  /// The shape held as a K (Disk, Triangle or Quad), or nullptr when it is
+  /// another kind.
+  template <class K> const K *get() const { return std::get_if<K>(&shape_); }
+
+  /// f(shape held), as a `const Disk &`, `const Triangle &` or `const Quad &`.
+  // A switch, not std::visit: the variant is never valueless (its
+  // alternatives copy without throwing), and this inlines into hot loops.
+  template <class F> decltype(auto) visit(F &&f) const {
+    switch (shape_.index()) {
+    case 0: return std::forward<F>(f)(*std::get_if<0>(&shape_));
+    case 1: return std::forward<F>(f)(*std::get_if<1>(&shape_));
+    default: return std::forward<F>(f)(*std::get_if<2>(&shape_));
+    }
+  }
+
+  /// The held shape's number of points: 1 (a disk's centre), 3 or 4.
+  int numPoints() const {
+    return visit([](const auto &s) { return s.numPoints(); });
+  }
+  /// The held shape's point i, 0 <= i < numPoints().
+  const Point &getPoint(int i) const {
+    return visit([i](const auto &s) -> const Point & { return s.getPoint(i); });
+  }
+  /// The held shape's tight box.
+  BoundingBox getBox() const {
+    return visit([](const auto &s) { return s.getBox(); });
+  }
+  /// The held shape's centre: a disk's centre, a polygon's mean vertex.
+  Point getCenter() const {
+    return visit([](const auto &s) { return Point(s.getCenter()); });
+  }
+  /// The held shape's fill colour.
+  const Color &getColor() const {
+    return visit([](const auto &s) -> const Color & { return s.getColor(); });
+  }
+  /// Changes the held shape's fill colour.
+  void setColor(const Color &c) {
+    std::visit([&](auto &s) { s.setColor(c); }, shape_);
+  }
+  /// Same kind, and equal as shapes of that kind.
+  friend bool operator==(const Shape &a, const Shape &b) { return a.shape_ == b.shape_; }
+  friend bool operator!=(const Shape &a, const Shape &b) { return !(a == b); }
+
+private:
+  std::variant<Disk, Triangle, Quad> shape_;
 };
 
 #endif // BVH_SHAPES_H

@@ -53,6 +53,11 @@ template <int N> void render_shape(std::ostream &ostr, const Polygon<N> &p) {
   ostr << "\" style=\"fill:#" << p.getColor().getHexString() << "\" />\n";
 }
 
+/// A shape of a mixed scene, drawn as its kind is.
+inline void render_shape(std::ostream &ostr, const Shape &s) {
+  s.visit([&](const auto &shape) { render_shape(ostr, shape); });
+}
+
 /// Closing of the document: a black frame around the canvas.
 inline void render_end(std::ostream &ostr) {
   ostr << "<rect x=\"1\" y=\"1\" width=\"998\" height=\"998\" fill=\"none\" stroke=\"black\" "

@@ -17,5 +17,5 @@ while read -r name args; do
   ./bvh.out "${argv[@]}" -o "demo/$name.html"
   end=$(date +%s%N)
   echo "  ($(((end - start) / 1000000)) ms)"
-done < <(sed -n '/^36_triangles /,/^discard_overlap_1000_quads /p' tests/golden.list)
+done < <(sed -n -e '/^36_triangles /,/^discard_overlap_1000_quads /p' -e '/^mixed_36_2 /p' tests/golden.list)
 echo "Pictures: demo/*.html (open them in a browser)."

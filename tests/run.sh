@@ -99,6 +99,8 @@ golden_folder() { # label data-folder
   local expected=expected_output/$label
   while read -r name args; do
     [[ -z $name || $name == \#* ]] && continue
+    # The course has no mixed scenes: .shapes cases run on inputs/ only.
+    [[ $label == course && $args == *.shapes* ]] && continue
     # shellcheck disable=SC2086
     set -- $args
     local argv=() a

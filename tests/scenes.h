@@ -55,6 +55,28 @@ struct Maker {
     q = Quad(Point(c.x - s, c.y - s), Point(c.x + s, c.y - s + coord(0, s / 2)), Point(c.x + s, c.y + s),
              Point(c.x - s + coord(0, s / 2), c.y + s), color());
   }
+  /// A mixed scene's shape: each of the three kinds a third of the time.
+  void make(Shape &s, double size) {
+    switch (rng() % 3) {
+    case 0: {
+      Disk d;
+      make(d, size);
+      s = d;
+      break;
+    }
+    case 1: {
+      Triangle t;
+      make(t, size);
+      s = t;
+      break;
+    }
+    default: {
+      Quad q;
+      make(q, size);
+      s = q;
+    }
+    }
+  }
   template <class T> std::vector<T> scene(int n, double size) {
     std::vector<T> v(std::size_t(n > 0 ? n : 0));
     for (T &s : v) make(s, size);
@@ -62,15 +84,35 @@ struct Maker {
   }
 };
 
+/// The brute-force models' predicate: intersect() for one kind; for mixed
+/// shapes, the pair's own predicate picked here by hand, so that the models
+/// do not lean on intersect(Shape, Shape), which they are there to check.
+template <class T> bool model_intersect(const T &a, const T &b) { return intersect(a, b); }
+template <class A> bool model_intersect_with(const A &a, const Shape &b) {
+  if (const Disk *d = b.disk()) return intersect(a, *d);
+  if (const Triangle *t = b.triangle()) return intersect(a, *t);
+  return intersect(a, *b.quad());
+}
+inline bool model_intersect(const Shape &a, const Shape &b) {
+  if (const Disk *d = a.disk()) return model_intersect_with(*d, b);
+  if (const Triangle *t = a.triangle()) return model_intersect_with(*t, b);
+  return model_intersect_with(*a.quad(), b);
+}
+
 template <class T> std::vector<T> contents(const BVH<T> &tree) {
   return std::vector<T>(tree.begin(), tree.end());
 }
+
+inline int kind_of(const Disk &) { return 0; }
+inline int kind_of(const Triangle &) { return 1; }
+inline int kind_of(const Quad &) { return 2; }
+inline int kind_of(const Shape &s) { return int(s.kind()); }
 
 // Shapes compare by geometry and colour; a canonical order makes multisets
 // comparable.
 template <class T> std::string key_of(const T &s) {
   std::ostringstream o;
-  o << std::setprecision(17) << s.getBox() << s.getCenter().x << "," << s.getCenter().y << "#"
+  o << std::setprecision(17) << kind_of(s) << s.getBox() << s.getCenter().x << "," << s.getCenter().y << "#"
     << s.getColor().getHexString();
   return o.str();
 }

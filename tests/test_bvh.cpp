@@ -24,6 +24,7 @@
 static_assert(std::bidirectional_iterator<BVH<Disk>::iterator>);
 static_assert(std::bidirectional_iterator<BVH<Triangle>::iterator>);
 static_assert(std::bidirectional_iterator<BVH<Quad>::iterator>);
+static_assert(std::bidirectional_iterator<BVH<Shape>::iterator>);
 #endif
 
 namespace {
@@ -105,7 +106,7 @@ template <class T> std::string report(const BVH<T> &tree) {
 
 template <class T> bool brute_collision(const std::vector<T> &kept, const T &s) {
   for (const T &k : kept)
-    if (intersect(k, s)) return true;
+    if (model_intersect(k, s)) return true;
   return false;
 }
 
@@ -148,6 +149,7 @@ TEST(course_example_matches_the_handout_shape) {
 TEST(bulk_build_equals_literal_course_rule_disks) { check_build_against_reference<Disk>(base_seed()); }
 TEST(bulk_build_equals_literal_course_rule_triangles) { check_build_against_reference<Triangle>(base_seed() + 1); }
 TEST(bulk_build_equals_literal_course_rule_quads) { check_build_against_reference<Quad>(base_seed() + 2); }
+TEST(bulk_build_equals_literal_course_rule_mixed) { check_build_against_reference<Shape>(base_seed() + 3); }
 
 TEST(bulk_build_with_all_centres_equal) {
   // Every centre ties on both axes: the order must be the input order.
@@ -357,6 +359,9 @@ TEST(collision_and_discard_overlap_equal_brute_force_triangles) {
 }
 TEST(collision_and_discard_overlap_equal_brute_force_quads) {
   check_collision_and_discard<Quad>(base_seed() + 2, 30);
+}
+TEST(collision_and_discard_overlap_equal_brute_force_mixed) {
+  check_collision_and_discard<Shape>(base_seed() + 3, 35);
 }
 
 TEST(touching_shapes_collide) {

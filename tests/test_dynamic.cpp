@@ -27,6 +27,7 @@ template <class T> const char *kind_name();
 template <> const char *kind_name<Disk>() { return "disks"; }
 template <> const char *kind_name<Triangle>() { return "triangles"; }
 template <> const char *kind_name<Quad>() { return "quads"; }
+template <> const char *kind_name<Shape>() { return "mixed shapes"; }
 
 /// A strict order on shapes by their numbers (points, radius, colour): the
 /// model comparison runs after every step, so it avoids scenes.h's
@@ -41,6 +42,14 @@ template <class T> bool shape_less(const T &a, const T &b) {
   if (ca.r != cb.r) return ca.r < cb.r;
   if (ca.g != cb.g) return ca.g < cb.g;
   return ca.b < cb.b;
+}
+/// Mixed shapes: by kind first, then as shapes of that kind.
+template <> bool shape_less<Shape>(const Shape &a, const Shape &b) {
+  if (a.kind() != b.kind()) return a.kind() < b.kind();
+  return a.visit([&](const auto &x) {
+    using K = std::decay_t<decltype(x)>;
+    return shape_less<K>(x, *b.get<K>());
+  });
 }
 template <class T> bool same_shapes(std::vector<T> a, std::vector<T> b) {
   std::sort(a.begin(), a.end(), shape_less<T>);
@@ -114,7 +123,7 @@ template <class T> void churn_against_model(unsigned seed) {
         T probe;
         make.make(probe, 60);
         bool brute = false;
-        for (const T &k : model) brute = brute || intersect(k, probe);
+        for (const T &k : model) brute = brute || model_intersect(k, probe);
         CHECK_EQ(tree.collision(probe), brute);
       }
       std::string why;
@@ -136,6 +145,7 @@ template <class T> void churn_against_model(unsigned seed) {
 TEST(erase_churn_matches_model_disks) { churn_against_model<Disk>(base_seed()); }
 TEST(erase_churn_matches_model_triangles) { churn_against_model<Triangle>(base_seed() + 100); }
 TEST(erase_churn_matches_model_quads) { churn_against_model<Quad>(base_seed() + 200); }
+TEST(erase_churn_matches_model_mixed) { churn_against_model<Shape>(base_seed() + 300); }
 
 TEST(erase_while_iterating_visits_each_shape_once) {
   const unsigned seed = base_seed() + 300;
@@ -245,7 +255,7 @@ template <class T> void queries_against_brute_force(unsigned seed) {
       want.clear();
       tree.query_into(probe, std::back_inserter(got));
       for (const T &s : shapes)
-        if (intersect(s, probe)) want.push_back(s);
+        if (model_intersect(s, probe)) want.push_back(s);
       CHECK(same_multiset(got, want));
       CHECK_EQ(tree.collision(probe), !want.empty());
       // early stop: f returning false ends the search after one shape
@@ -286,6 +296,7 @@ template <class T> void queries_against_brute_force(unsigned seed) {
 TEST(queries_match_brute_force_disks) { queries_against_brute_force<Disk>(base_seed() + 600); }
 TEST(queries_match_brute_force_triangles) { queries_against_brute_force<Triangle>(base_seed() + 700); }
 TEST(queries_match_brute_force_quads) { queries_against_brute_force<Quad>(base_seed() + 800); }
+TEST(queries_match_brute_force_mixed) { queries_against_brute_force<Shape>(base_seed() + 1500); }
 
 TEST(distance_and_ray_hand_cases) {
   const Disk d(Point(0, 0), 1, Color());
@@ -332,7 +343,7 @@ template <class T> void pairs_against_brute_force(unsigned seed) {
     const std::vector<T> stored = contents(tree);
     std::size_t brute = 0;
     for (std::size_t i = 0; i < stored.size(); ++i)
-      for (std::size_t j = i + 1; j < stored.size(); ++j) brute += intersect(stored[i], stored[j]);
+      for (std::size_t j = i + 1; j < stored.size(); ++j) brute += model_intersect(stored[i], stored[j]);
     CHECK_EQ(tree.count_overlapping_pairs(), brute);
     // Each pair once: the pairs reported, as address pairs, have no repeats.
     std::vector<std::pair<const T *, const T *>> seen;
@@ -342,7 +353,7 @@ template <class T> void pairs_against_brute_force(unsigned seed) {
     std::sort(seen.begin(), seen.end());
     CHECK(std::adjacent_find(seen.begin(), seen.end()) == seen.end());
     CHECK_EQ(seen.size(), brute);
-    for (const auto &pr : seen) CHECK(pr.first != pr.second && intersect(*pr.first, *pr.second));
+    for (const auto &pr : seen) CHECK(pr.first != pr.second && model_intersect(*pr.first, *pr.second));
     // Stopping early.
     std::size_t calls = 0;
     tree.for_each_overlapping_pair([&](const T &, const T &) { return ++calls < 3; });
@@ -354,6 +365,7 @@ template <class T> void pairs_against_brute_force(unsigned seed) {
 TEST(pairs_match_brute_force_disks) { pairs_against_brute_force<Disk>(base_seed() + 900); }
 TEST(pairs_match_brute_force_triangles) { pairs_against_brute_force<Triangle>(base_seed() + 1000); }
 TEST(pairs_match_brute_force_quads) { pairs_against_brute_force<Quad>(base_seed() + 1100); }
+TEST(pairs_match_brute_force_mixed) { pairs_against_brute_force<Shape>(base_seed() + 1600); }
 
 // ---------------------------------------------------------------------------
 // the SAH build rule
@@ -390,7 +402,7 @@ template <class T> void sah_build_against_brute_force(unsigned seed) {
       T probe;
       make.make(probe, 60);
       bool brute = false;
-      for (const T &s : shapes) brute = brute || intersect(s, probe);
+      for (const T &s : shapes) brute = brute || model_intersect(s, probe);
       CHECK_EQ(sah.collision(probe), brute);
       CHECK_EQ(grown.collision(probe), brute);
     }
@@ -408,6 +420,7 @@ template <class T> void sah_build_against_brute_force(unsigned seed) {
 TEST(sah_build_valid_and_correct_disks) { sah_build_against_brute_force<Disk>(base_seed() + 1200); }
 TEST(sah_build_valid_and_correct_triangles) { sah_build_against_brute_force<Triangle>(base_seed() + 1300); }
 TEST(sah_build_valid_and_correct_quads) { sah_build_against_brute_force<Quad>(base_seed() + 1400); }
+TEST(sah_build_valid_and_correct_mixed) { sah_build_against_brute_force<Shape>(base_seed() + 1700); }
 
 } // namespace
 

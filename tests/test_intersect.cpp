@@ -266,6 +266,11 @@ template <class A, class B> int reference(const A &a, const B &b, bool big) {
   return big ? ref_intersect<Big>(ra, rb) : ref_intersect<i128>(ra, rb);
 }
 
+/// The same for two shapes of a mixed scene: the reference of their kinds.
+int reference(const Shape &a, const Shape &b, bool big) {
+  return a.visit([&](const auto &x) { return b.visit([&](const auto &y) { return reference(x, y, big); }); });
+}
+
 // ---------------------------------------------------------------------------
 // Same set, other vertex order: a rotation and maybe a reversal.
 
@@ -280,6 +285,9 @@ Quad reorder(const Quad &q, unsigned k) {
   return (k & 4) ? Quad(p[3], p[2], p[1], p[0]) : Quad(p[0], p[1], p[2], p[3]);
 }
 Disk reorder(const Disk &d, unsigned) { return d; }
+Shape reorder(const Shape &s, unsigned k) {
+  return s.visit([k](const auto &x) { return Shape(reorder(x, k)); });
+}
 
 /// Counts of a randomized run, for the log and for "the test saw both answers".
 struct Tally {
@@ -297,6 +305,9 @@ template <int N> std::string describe(const Polygon<N> &poly) {
   std::string s = N == 3 ? "triangle" : "quad";
   for (int i = 0; i < N; ++i) s += " " + describe(poly.getPoint(i));
   return s;
+}
+std::string describe(const Shape &s) {
+  return s.visit([](const auto &x) { return describe(x); });
 }
 
 /// The context of the randomized case running (seed), extended with the
@@ -398,6 +409,13 @@ struct Gen {
   void any(Disk &d) { d = disk(); }
   void any(Triangle &t) { t = triangle(); }
   void any(Quad &q) { q = quad(); }
+  void any(Shape &s) {
+    switch (pick(0, 2)) {
+    case 0: s = disk(); break;
+    case 1: s = triangle(); break;
+    default: s = quad();
+    }
+  }
 
   // Pythagorean directions: (a, b) with a^2 + b^2 = c^2.
   void triple(long &a, long &b, long &c) {
@@ -493,6 +511,47 @@ TEST(random_grid_pairs_match_reference) {
   CHECK(all.hits > all.pairs / 5 && all.hits < all.pairs * 4 / 5);
 }
 
+TEST(mixed_shape_pairs_match_reference) {
+  // intersect(Shape, Shape) must reach the right predicate for each of the
+  // nine ordered pairs of kinds: checked against the reference on random
+  // mixed pairs and on tangent constructions held as Shapes.
+  const unsigned long long seed = base_seed() + 5;
+  note(seed_note("mixed_shape_pairs"));
+  Gen g(seed);
+  const long n = scaled(30000);
+  Tally all;
+  random_pairs<Shape, Shape>(g, n, all);
+  int kinds_seen[3][3] = {};
+  for (long i = 0; i < n / 4; ++i) {
+    Disk d;
+    Shape b;
+    if (g.coin(50)) {
+      Triangle t;
+      g.tangent_edge(d, t);
+      b = t;
+    } else {
+      Quad q;
+      g.tangent_edge(d, q);
+      b = q;
+    }
+    const Shape a = d;
+    check_pair(a, b, false, unsigned(g.rng()), all);
+    check_pair(b, a, false, unsigned(g.rng()), all);
+  }
+  for (long i = 0; i < 3000; ++i) {
+    Shape a, b;
+    g.new_scene();
+    g.any(a);
+    g.any(b);
+    ++kinds_seen[int(a.kind())][int(b.kind())];
+  }
+  log_tally("mixed pairs", all);
+  CHECK_EQ(all.unchecked, 0L);
+  CHECK(all.hits > all.pairs / 5 && all.hits < all.pairs * 4 / 5);
+  for (auto &row : kinds_seen)
+    for (int c : row) CHECK(c > 100); // every ordered pair of kinds is drawn
+}
+
 namespace {
 
 /// Discard-overlap sampling of `scene` by the tree (as bvh.out
@@ -555,6 +614,27 @@ TEST(integer_grid_discard_survivors_match_reference) {
     ++kept_scenes;
   }
   std::cout << "  integer-grid discard scenes: " << 3 * kept_scenes << ", reference pairs " << t.pairs
+            << ", rejections " << t.hits << std::endl;
+  CHECK(t.hits > 0);
+}
+
+TEST(integer_grid_mixed_discard_survivors_match_reference) {
+  // The same for mixed scenes: disks, triangles and quads in one tree.
+  const unsigned long long seed = base_seed() + 6;
+  note(seed_note("integer_grid_mixed_discard"));
+  Gen g(seed);
+  Tally t;
+  int scenes = 0;
+  for (int round = 0; round < scaled(24) + 3; ++round) {
+    g.unit = round % 2 ? 1.0 : 0.5;
+    g.extent = 12 + 8 * (round % 4);
+    const int n = int(std::max(30L, scaled(400)));
+    std::vector<Shape> mixed(n);
+    for (Shape &s : mixed) g.any(s);
+    discard_matches_reference(mixed, 1 + round % 5, (round % 3) * 3, t);
+    ++scenes;
+  }
+  std::cout << "  integer-grid mixed discard scenes: " << scenes << ", reference pairs " << t.pairs
             << ", rejections " << t.hits << std::endl;
   CHECK(t.hits > 0);
 }
