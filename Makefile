@@ -8,10 +8,11 @@ COURSE_DATA ?= ../shared/course
 BUILD ?= build
 
 HEADERS := bvh.h shapes.h intersect.h distance.h svg.h
-TESTS := $(BUILD)/test_bvh $(BUILD)/test_intersect $(BUILD)/test_dynamic
+TESTS := $(BUILD)/test_bvh $(BUILD)/test_intersect $(BUILD)/test_dynamic $(BUILD)/test_parse
 # test_bvh once more with collision()'s scalar fallback instead of SSE2.
 SCALAR_TESTS := $(BUILD)/test_bvh_scalar
-SAN_TESTS := $(BUILD)/test_bvh_san $(BUILD)/test_intersect_san $(BUILD)/test_dynamic_san $(BUILD)/bvh_san.out
+SAN_TESTS := $(BUILD)/test_bvh_san $(BUILD)/test_intersect_san $(BUILD)/test_dynamic_san $(BUILD)/test_parse_san \
+  $(BUILD)/bvh_san.out
 
 .PHONY: all test demo bench clean fuzz bench-dynamic bench-builders
 
@@ -20,13 +21,14 @@ all: bvh.out
 bvh.out: main.cpp $(HEADERS)
 	$(CXX) $(CXXFLAGS) main.cpp -o $@
 
-$(BUILD)/test_%: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+# (main.cpp too: test_parse includes it.)
+$(BUILD)/test_%: tests/test_%.cpp tests/check.h tests/scenes.h main.cpp $(HEADERS) | $(BUILD)
 	$(CXX) $(CXXFLAGS) -I. -Itests $< -o $@
 
 $(BUILD)/test_bvh_scalar: tests/test_bvh.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) $(CXXFLAGS) -DBVH_NO_SIMD -I. -Itests $< -o $@
 
-$(BUILD)/test_%_san: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+$(BUILD)/test_%_san: tests/test_%.cpp tests/check.h tests/scenes.h main.cpp $(HEADERS) | $(BUILD)
 	$(CXX) $(SANITIZE) -I. -Itests $< -o $@
 
 $(BUILD)/bvh_san.out: main.cpp $(HEADERS) | $(BUILD)

@@ -105,8 +105,22 @@ bad_scene input_invalid_utf8 disks "\.disks:1: " 'pt= <1 2> radius= 3 color= {1 
 bad_scene input_error_line_number_after_blank_and_crlf_lines disks "\.disks:4: negative radius" \
   'pt= <1 2> radius= 3 color= {1 2 3}\r\n\r\n\npt= <1 2> radius= -1 color= {1 2 3}\r\n'
 bad_scene input_truncated_last_line disks "\.disks:2: " 'pt= <1 2> radius= 3 color= {1 2 3}\npt= <1 2> rad'
+# Mixed scenes (.shapes): each line's form says its kind; a form that is
+# none of the three is an error at its first wrong token.
+bad_scene input_mixed_one_point_no_radius shapes "\.shapes:2: expected 'radius=' or 'pt=', found 'color='" \
+  'pt= <1 2> radius= 3 color= {1 2 3}\npt= <1 2> color= {1 2 3}\n'
+bad_scene input_mixed_two_points shapes "\.shapes:1: expected 'pt=' \(a triangle or quad has 3 or 4 points\)" \
+  'pt= <1 2> pt= <3 4> color= {1 2 3}\n'
+bad_scene input_mixed_radius_after_three_points shapes "\.shapes:1: expected 'pt=' or 'color=', found 'radius='" \
+  'pt= <1 2> pt= <3 4> pt= <5 6> radius= 3 color= {1 2 3}\n'
+bad_scene input_mixed_five_points shapes "\.shapes:3: expected 'color=', found 'pt='" \
+  'pt= <1 2> pt= <3 4> pt= <5 6> color= {1 2 3}\npt= <1 2> pt= <3 4> pt= <5 6> pt= <7 8> color= {1 2 3}\npt= <1 2> pt= <3 4> pt= <5 6> pt= <7 8> pt= <9 9> color= {1 2 3}\n'
+bad_scene input_mixed_negative_radius shapes "\.shapes:1: negative radius" 'pt= <1 2> radius= -3 color= {1 2 3}\n'
+bad_scene input_mixed_garbage shapes "\.shapes:1: expected 'pt=', found byte 0x" '\x01\x02\xff\n'
 long_line=$(printf 'pt= <1 2> radius= 3 color= {1 2 3}%5000s' '')
 bad_scene input_over_long_line disks "\.disks:1: line longer than" "$long_line\n"
+
+expect cli_generate_shapes_wrong_suffix 2 "must end in \.shapes" -- --generate shapes 10 -o "$dir/x.disks"
 
 # An error keeps an existing picture as it was.
 echo keep >"$o"
@@ -130,4 +144,16 @@ if "$bin" -i "$dir/empty.quads" -o "$o" --depth_limit 3 --print_tree >"$dir/stdo
   echo "ok input_empty_scene_is_an_empty_tree$tag"
 else
   echo "FAIL input_empty_scene_is_an_empty_tree$tag $(head -c 300 "$dir/stdout")"
+fi
+
+# A mixed scene: every kind drawn as itself, boxes and pairs across kinds.
+printf 'pt= <10 10> radius= 5 color= {1 2 3}\npt= <15 10> pt= <30 10> pt= <15 30> color= {4 5 6}\npt= <31 10> pt= <40 10> pt= <40 20> pt= <31 20> color= {7 8 9}\n' >"$dir/mixed.shapes"
+if "$bin" -i "$dir/mixed.shapes" -o "$o" --depth_limit 1 --print_tree --pairs >"$dir/stdout" 2>&1 &&
+  grep -q "elements: \[<  5.0   5.0> < 15.0  15.0>\] \[< 15.0  10.0> < 30.0  30.0>\] \[< 31.0  10.0> < 40.0  20.0>\]" "$dir/stdout" &&
+  grep -q "^overlapping pairs: 1$" "$dir/stdout" && [ "$(grep -c '<circle ' "$o")" = 1 ] &&
+  [ "$(grep -c '<polygon points="[0-9.]*,[0-9.]* [0-9.]*,[0-9.]* [0-9.]*,[0-9.]*" style="fill:#040506"' "$o")" = 1 ] &&
+  [ "$(grep -c '<polygon points="[0-9.]*,[0-9.]* [0-9.]*,[0-9.]* [0-9.]*,[0-9.]* [0-9.]*,[0-9.]*" style="fill:#070809"' "$o")" = 1 ]; then
+  echo "ok input_mixed_scene_reads_each_kind$tag"
+else
+  echo "FAIL input_mixed_scene_reads_each_kind$tag $(head -c 300 "$dir/stdout")"
 fi

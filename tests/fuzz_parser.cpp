@@ -1,5 +1,5 @@
 // tests/fuzz_parser.cpp — libFuzzer target for everything a user's bytes reach:
-// the scene parser of every kind, the tree built from what it accepts, and the
+// the scene parser of every kind (mixed .shapes scenes too), the tree built from what it accepts, and the
 // command-line parser.
 //
 //   make fuzz                       # FUZZ_SECONDS=60 by default
@@ -7,7 +7,9 @@
 //
 // Built with clang++ -fsanitize=fuzzer,address,undefined: a crash, a leak,
 // undefined behaviour or a failed invariant below (abort) is a finding.
-// Input layout: byte 0 picks the path and the tree's parameters, the rest
+// Input layout: byte 0 picks the path and the tree's parameters (its top two
+// bits the kind: disks, triangles, quads, or 3: the command line when the
+// byte is odd and a mixed scene when even), the rest
 // is a scene file (or, for the command-line path, NUL-separated arguments).
 #define BVH_NO_MAIN
 #include "../main.cpp"
@@ -121,7 +123,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *bytes, std::size_t siz
   case 0: scene<Disk>("fuzz.disks", mode, data, size); break;
   case 1: scene<Triangle>("fuzz.triangles", mode, data, size); break;
   case 2: scene<Quad>("fuzz.quads", mode, data, size); break;
-  default: command_line(data, size); break;
+  default:
+    // Odd: the command line; even: a mixed scene (split threshold 1 or 3).
+    if (mode & 1)
+      command_line(data, size);
+    else
+      scene<Shape>("fuzz.shapes", mode, data, size);
+    break;
   }
   return 0;
 }

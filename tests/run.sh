@@ -72,6 +72,7 @@ for compiler in g++ clang++; do
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_bvh.cpp &&
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_intersect.cpp &&
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_dynamic.cpp &&
+      $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_parse.cpp &&
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. tests/fuzz_parser.cpp"
   else
     skip "warnings_$compiler" "$compiler is not installed"
@@ -86,11 +87,13 @@ run_case iterator_is_a_cxx20_bidirectional_iterator \
 run_suite test_bvh "$BUILD/test_bvh"
 run_suite test_intersect "$BUILD/test_intersect"
 run_suite test_dynamic "$BUILD/test_dynamic"
+run_suite test_parse "$BUILD/test_parse"
 # collision() without SSE2 (BVH_NO_SIMD): the scalar fallback against the same brute force.
 BVH_TEST_SCALE=0.3 run_suite test_bvh_scalar "$BUILD/test_bvh_scalar"
 BVH_TEST_SCALE=0.3 run_suite test_bvh_sanitized "$BUILD/test_bvh_san"
 BVH_TEST_SCALE=0.3 run_suite test_intersect_sanitized "$BUILD/test_intersect_san"
 BVH_TEST_SCALE=0.5 run_suite test_dynamic_sanitized "$BUILD/test_dynamic_san"
+BVH_TEST_SCALE=0.1 run_suite test_parse_sanitized "$BUILD/test_parse_san"
 
 # ---------------------------------------------------------------------------
 # 3. Golden stdout: tests/golden.list on the course's data and on inputs/.
@@ -220,6 +223,7 @@ if command -v valgrind >/dev/null 2>&1; then
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_bvh "${VG[@]}" "$BUILD/test_bvh"
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_intersect"
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_dynamic"
+  BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_parse"
   run_case valgrind_bulk_build "${VG[@]}" ./bvh.out -i inputs/1000.triangles -o "$OUT/vg_bulk.html" \
     --depth_limit 4 --visualize --print_tree
   run_case valgrind_incremental "${VG[@]}" ./bvh.out -i inputs/1000.quads -o "$OUT/vg_incremental.html" \
@@ -227,6 +231,8 @@ if command -v valgrind >/dev/null 2>&1; then
   run_case valgrind_discard_overlap "${VG[@]}" ./bvh.out -i inputs/overlap_1000.disks -o "$OUT/vg_discard.html" \
     --depth_limit 8 --incremental --discard_overlap
   run_case valgrind_generate "${VG[@]}" ./bvh.out --generate triangles 300 --seed 3 -o "$OUT/vg.triangles"
+  run_case valgrind_mixed_scene "${VG[@]}" ./bvh.out -i inputs/overlap_1000.shapes -o "$OUT/vg_mixed.html" \
+    --depth_limit 6 --incremental --discard_overlap --visualize --print_tree --pairs
 else
   bad valgrind_available "valgrind is missing: apt-get install valgrind"
 fi

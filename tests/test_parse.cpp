@@ -1,0 +1,226 @@
+// tests/test_parse.cpp — the scene reader of main.cpp against references:
+// its fast decimal path against std::from_chars on millions of random
+// numbers, mixed (.shapes) lines against the one-kind readers, and the
+// chunked file reader against the in-memory one at many chunk sizes.
+// Seeds are printed (BVH_SEED changes them; BVH_TEST_SCALE shrinks runs).
+#define BVH_NO_MAIN
+#include "../main.cpp"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "check.h"
+#include "scenes.h"
+
+namespace {
+
+std::string seed_note(const char *what, unsigned seed) {
+  return std::string(what) + " BVH_SEED=" + std::to_string(seed) + " BVH_TEST_SCALE=" + std::to_string(scale());
+}
+
+/// What the course's `>> float` gives for `text`: from_chars into a float
+/// (a leading '+' skipped, as `>>` allows), widened. False if it rejects.
+bool reference_number(const std::string &text, double &value) {
+  const char *p = text.data(), *end = p + text.size();
+  if (end - p >= 2 && p[0] == '+' && p[1] != '-') ++p;
+  float f = 0;
+  const std::from_chars_result r = std::from_chars(p, end, f);
+  if (r.ec != std::errc() || r.ptr != end || !std::isfinite(f) || std::fabs(f) > 1e9f) return false;
+  value = double(f);
+  return true;
+}
+
+/// LineParser::number on `text` alone; false if it rejects.
+bool parsed_number(const std::string &text, double &value) {
+  const std::string line = text + '\0'; // the end byte LineParser needs
+  LineParser in(line.data(), line.data() + text.size());
+  std::string error;
+  return in.number(value, "a coordinate", error) && in.at_end();
+}
+
+/// A random number in the forms scene files use and around them: signs,
+/// up to 12 integer digits, up to 12 decimals, sometimes an exponent.
+std::string random_decimal(std::mt19937_64 &rng) {
+  std::string s;
+  const unsigned sign = unsigned(rng() % 8);
+  if (sign == 0) s += '-';
+  if (sign == 1) s += '+';
+  const int whole = int(rng() % 13), decimals = int(rng() % 13);
+  for (int i = 0; i < whole; ++i) s += char('0' + rng() % 10);
+  if (rng() % 4 != 0 || whole == 0) {
+    s += '.';
+    for (int i = 0; i < decimals; ++i) s += char('0' + rng() % 10);
+  }
+  if (rng() % 10 == 0) s += "e" + std::to_string(int(rng() % 21) - 10);
+  return s;
+}
+
+} // namespace
+
+TEST(number_reader_matches_from_chars) {
+  const unsigned seed = base_seed();
+  note(seed_note("number_reader", seed));
+  std::mt19937_64 rng(seed);
+  const long n = long(scaled(2000000));
+  long accepted = 0, fast_forms = 0, mismatches = 0;
+  for (long i = 0; i < n; ++i) {
+    // Half the cases in the course's own form: 0-1000 with one decimal.
+    const std::string text = i % 2 ? random_decimal(rng)
+                                   : std::to_string(rng() % 1000) + "." + std::to_string(rng() % 10);
+    double want = 0, got = 0;
+    const bool ok_want = reference_number(text, want), ok_got = parsed_number(text, got);
+    if (ok_want != ok_got || (ok_want && std::memcmp(&want, &got, sizeof want) != 0)) {
+      if (++mismatches <= 5) note(seed_note("number_reader", seed) + " text '" + text + "'");
+      CHECK(false);
+    }
+    accepted += ok_got;
+    fast_forms += text.find('e') == std::string::npos;
+  }
+  std::cout << "  " << n << " numbers, " << accepted << " accepted, " << fast_forms << " without exponent"
+            << std::endl;
+  CHECK(accepted > n / 2 && accepted < n); // both answers are common
+}
+
+TEST(mixed_lines_read_as_their_own_kind) {
+  // A .shapes line must give exactly what the one-kind reader gives for it.
+  const unsigned seed = base_seed() + 1;
+  note(seed_note("mixed_lines", seed));
+  Maker make(seed, 0.1);
+  std::string text;
+  std::vector<Shape> expect;
+  const int n = scaled(3000);
+  for (int i = 0; i < n; ++i) {
+    Shape s;
+    make.make(s, 40);
+    std::string line;
+    if (const Disk *d = s.disk()) {
+      line = format_line(d->getCenter(), std::fabs(d->getRadius()), d->getColor());
+    } else {
+      Point p[4];
+      for (int k = 0; k < s.numPoints(); ++k) p[k] = s.getPoint(k);
+      line = format_line(p, s.numPoints(), s.getColor());
+    }
+    if (i % 7 == 3) line.insert(line.size() - 1, "\r"); // CRLF lines
+    if (i % 11 == 5) text += "   \n";                   // blank lines
+    text += line;
+    // The one-kind reader of the line's own kind is the reference.
+    std::string error;
+    bool ok = false;
+    if (s.disk()) {
+      std::vector<Disk> one;
+      ok = parse_scene("one.disks", line.data(), line.size(), one, error) && one.size() == 1;
+      if (ok) expect.push_back(one[0]);
+    } else if (s.triangle()) {
+      std::vector<Triangle> one;
+      ok = parse_scene("one.triangles", line.data(), line.size(), one, error) && one.size() == 1;
+      if (ok) expect.push_back(one[0]);
+    } else {
+      std::vector<Quad> one;
+      ok = parse_scene("one.quads", line.data(), line.size(), one, error) && one.size() == 1;
+      if (ok) expect.push_back(one[0]);
+    }
+    CHECK(ok);
+  }
+  std::vector<Shape> got;
+  std::string error;
+  CHECK(parse_scene("mixed.shapes", text.data(), text.size(), got, error));
+  CHECK_EQ(error, std::string());
+  CHECK_EQ(got.size(), expect.size());
+  CHECK(got == expect);
+  int kinds[3] = {};
+  for (const Shape &s : got) ++kinds[int(s.kind())];
+  for (int k : kinds) CHECK(k > n / 5);
+  // The same lines read as a one-kind file fail at the first line of another kind.
+  std::vector<Triangle> triangles;
+  CHECK(!parse_scene("mixed.triangles", text.data(), text.size(), triangles, error));
+  CHECK(error.find("mixed.triangles:") == 0);
+}
+
+TEST(mixed_line_errors_name_the_line_and_token) {
+  struct Case {
+    const char *text, *message;
+  };
+  const Case cases[] = {
+      {"pt= <1 2> color= {1 2 3}\n", "x.shapes:1: expected 'radius=' or 'pt=', found 'color='"},
+      {"\npt= <1 2> pt= <3 4> color= {1 2 3}\n", "x.shapes:2: expected 'pt=' (a triangle or quad has 3 or 4 points), found 'color='"},
+      {"pt= <1 2> pt= <3 4> pt= <5 6> radius= 2 color= {1 2 3}\n", "x.shapes:1: expected 'pt=' or 'color=', found 'radius='"},
+      {"pt= <1 2> pt= <3 4> pt= <5 6> pt= <7 8> pt= <9 9> color= {1 2 3}\n", "x.shapes:1: expected 'color=', found 'pt='"},
+      {"pt= <1 2> radius= 3 pt= <3 4> color= {1 2 3}\n", "x.shapes:1: expected 'color=', found 'pt='"},
+      {"pt= <1 2> radius= -1 color= {1 2 3}\n", "x.shapes:1: negative radius"},
+      {"radius= 3 color= {1 2 3}\n", "x.shapes:1: expected 'pt=', found 'radius='"},
+      {"pt= <1 2> pt= <3 4> pt= <5 6> color= {1 2 3} pt= <1 1>\n", "x.shapes:1: unexpected 'pt=' after the shape"},
+  };
+  for (const Case &c : cases) {
+    std::vector<Shape> shapes;
+    std::string error;
+    const std::string text = c.text;
+    CHECK(!parse_scene("x.shapes", text.data(), text.size(), shapes, error));
+    if (error != c.message) note(std::string("got: ") + error);
+    CHECK_EQ(error, std::string(c.message));
+  }
+}
+
+TEST(chunked_file_reader_equals_whole_text) {
+  // load_scene reads in chunks and carries unfinished lines over; every
+  // chunk size must give what parsing the whole text at once gives.
+  const unsigned seed = base_seed() + 2;
+  note(seed_note("chunked_reader", seed));
+  Maker make(seed, 0.1);
+  std::string text = "\xef\xbb\xbf"; // a byte-order mark first
+  for (int i = 0; i < scaled(400); ++i) {
+    Shape s;
+    make.make(s, 30);
+    Point p[4];
+    for (int k = 0; k < s.numPoints(); ++k) p[k] = s.getPoint(k);
+    text += s.disk() ? format_line(p[0], std::fabs(s.disk()->getRadius()), s.getColor())
+                     : format_line(p, s.numPoints(), s.getColor());
+    if (i % 5 == 0) text += "\r\n";
+  }
+  text += "pt= <1 2> radius= 3 color= {1 2 3}"; // no final line end
+  const char *tmp = std::getenv("TMPDIR");
+  const std::string path = std::string(tmp && *tmp ? tmp : "/tmp") + "/bvh_test_parse_" + std::to_string(getpid()) +
+                           ".shapes";
+  {
+    std::FILE *f = std::fopen(path.c_str(), "wb");
+    CHECK(f != nullptr);
+    if (!f) return;
+    std::fwrite(text.data(), 1, text.size(), f);
+    std::fclose(f);
+  }
+  std::vector<Shape> whole;
+  std::string error;
+  CHECK(parse_scene(path, text.data() + 3, text.size() - 3, whole, error));
+  for (std::size_t chunk : {std::size_t(1), std::size_t(2), std::size_t(3), std::size_t(7), std::size_t(64),
+                            std::size_t(1000), std::size_t(4096), kReadChunk}) {
+    std::vector<Shape> got;
+    std::string e;
+    CHECK(load_scene(path, got, e, chunk));
+    if (got != whole) note("chunk size " + std::to_string(chunk));
+    CHECK(got == whole);
+  }
+  // A bad line deep in the file is reported with its own line number.
+  text.insert(text.find('\n', text.size() / 2) + 1, "pt= <1 2> radius= oops color= {1 2 3}\n");
+  long line = 1;
+  for (std::size_t i = 0, stop = text.find("oops"); i < stop; ++i) line += text[i] == '\n';
+  std::FILE *f = std::fopen(path.c_str(), "wb");
+  CHECK(f != nullptr);
+  if (!f) return;
+  std::fwrite(text.data(), 1, text.size(), f);
+  std::fclose(f);
+  for (std::size_t chunk : {std::size_t(1), std::size_t(5), kReadChunk}) {
+    std::vector<Shape> got;
+    std::string e;
+    CHECK(!load_scene(path, got, e, chunk));
+    CHECK_EQ(e, path + ":" + std::to_string(line) + ": expected a radius, found 'oops'");
+  }
+  std::remove(path.c_str());
+}
+
+int main(int argc, char **argv) {
+  std::cout << "seed " << base_seed() << " (set BVH_SEED to change), scale " << scale() << std::endl;
+  return run_all_tests(argc, argv);
+}
