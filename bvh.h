@@ -1,6 +1,7 @@
 // bvh.h — BVH<T>: a ternary bounding volume hierarchy over 2D shapes
-// (Disk, Triangle, Quad from shapes.h), built in bulk or one shape at a time,
-// answering "does this shape touch anything stored?" exactly.
+// (Disk, Triangle, Quad from shapes.h, or Shape for mixed scenes), built in
+// bulk or one shape at a time, answering "does this shape touch anything
+// stored?" exactly.
 //
 //   BVH<Disk> tree(/*split_threshold=*/4, /*depth_limit=*/0);  // 0: unlimited
 //   tree.construct(disks);                   // bulk build, the course's rule

@@ -59,6 +59,30 @@ std::string random_decimal(std::mt19937_64 &rng) {
   return s;
 }
 
+/// The shape as a scene line, in the generator's format.
+std::string scene_line(const Shape &s) {
+  if (const Disk *d = s.disk()) return format_line(d->getCenter(), std::fabs(d->getRadius()), d->getColor());
+  Point p[4];
+  for (int k = 0; k < s.numPoints(); ++k) p[k] = s.getPoint(k);
+  return format_line(p, s.numPoints(), s.getColor());
+}
+
+/// Reads `line` with the reader of one kind K; appends its one shape.
+template <class K> bool read_as(const char *name, const std::string &line, std::vector<Shape> &out) {
+  std::vector<K> one;
+  std::string error;
+  if (!parse_scene(name, line.data(), line.size(), one, error) || one.size() != 1) return false;
+  out.push_back(one[0]);
+  return true;
+}
+
+bool write_file(const std::string &path, const std::string &text) {
+  std::FILE *f = std::fopen(path.c_str(), "wb");
+  if (!f) return false;
+  const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
+  return std::fclose(f) == 0 && ok;
+}
+
 } // namespace
 
 TEST(number_reader_matches_from_chars) {
@@ -96,34 +120,14 @@ TEST(mixed_lines_read_as_their_own_kind) {
   for (int i = 0; i < n; ++i) {
     Shape s;
     make.make(s, 40);
-    std::string line;
-    if (const Disk *d = s.disk()) {
-      line = format_line(d->getCenter(), std::fabs(d->getRadius()), d->getColor());
-    } else {
-      Point p[4];
-      for (int k = 0; k < s.numPoints(); ++k) p[k] = s.getPoint(k);
-      line = format_line(p, s.numPoints(), s.getColor());
-    }
+    std::string line = scene_line(s);
     if (i % 7 == 3) line.insert(line.size() - 1, "\r"); // CRLF lines
     if (i % 11 == 5) text += "   \n";                   // blank lines
     text += line;
     // The one-kind reader of the line's own kind is the reference.
-    std::string error;
-    bool ok = false;
-    if (s.disk()) {
-      std::vector<Disk> one;
-      ok = parse_scene("one.disks", line.data(), line.size(), one, error) && one.size() == 1;
-      if (ok) expect.push_back(one[0]);
-    } else if (s.triangle()) {
-      std::vector<Triangle> one;
-      ok = parse_scene("one.triangles", line.data(), line.size(), one, error) && one.size() == 1;
-      if (ok) expect.push_back(one[0]);
-    } else {
-      std::vector<Quad> one;
-      ok = parse_scene("one.quads", line.data(), line.size(), one, error) && one.size() == 1;
-      if (ok) expect.push_back(one[0]);
-    }
-    CHECK(ok);
+    CHECK(s.disk()       ? read_as<Disk>("one.disks", line, expect)
+          : s.triangle() ? read_as<Triangle>("one.triangles", line, expect)
+                         : read_as<Quad>("one.quads", line, expect));
   }
   std::vector<Shape> got;
   std::string error;
@@ -174,23 +178,14 @@ TEST(chunked_file_reader_equals_whole_text) {
   for (int i = 0; i < scaled(400); ++i) {
     Shape s;
     make.make(s, 30);
-    Point p[4];
-    for (int k = 0; k < s.numPoints(); ++k) p[k] = s.getPoint(k);
-    text += s.disk() ? format_line(p[0], std::fabs(s.disk()->getRadius()), s.getColor())
-                     : format_line(p, s.numPoints(), s.getColor());
+    text += scene_line(s);
     if (i % 5 == 0) text += "\r\n";
   }
   text += "pt= <1 2> radius= 3 color= {1 2 3}"; // no final line end
   const char *tmp = std::getenv("TMPDIR");
   const std::string path = std::string(tmp && *tmp ? tmp : "/tmp") + "/bvh_test_parse_" + std::to_string(getpid()) +
                            ".shapes";
-  {
-    std::FILE *f = std::fopen(path.c_str(), "wb");
-    CHECK(f != nullptr);
-    if (!f) return;
-    std::fwrite(text.data(), 1, text.size(), f);
-    std::fclose(f);
-  }
+  CHECK(write_file(path, text));
   std::vector<Shape> whole;
   std::string error;
   CHECK(parse_scene(path, text.data() + 3, text.size() - 3, whole, error));
@@ -206,11 +201,7 @@ TEST(chunked_file_reader_equals_whole_text) {
   text.insert(text.find('\n', text.size() / 2) + 1, "pt= <1 2> radius= oops color= {1 2 3}\n");
   long line = 1;
   for (std::size_t i = 0, stop = text.find("oops"); i < stop; ++i) line += text[i] == '\n';
-  std::FILE *f = std::fopen(path.c_str(), "wb");
-  CHECK(f != nullptr);
-  if (!f) return;
-  std::fwrite(text.data(), 1, text.size(), f);
-  std::fclose(f);
+  CHECK(write_file(path, text));
   for (std::size_t chunk : {std::size_t(1), std::size_t(5), kReadChunk}) {
     std::vector<Shape> got;
     std::string e;
