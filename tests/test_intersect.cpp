@@ -587,6 +587,18 @@ template <class T> void discard_matches_reference(const std::vector<T> &scene, i
   CHECK(tree.validate());
 }
 
+/// One round of a grid-discard test: a scene of n shapes of kind T on the
+/// round's grid, sampled by the tree with the round's parameters and by the
+/// reference scan.
+template <class T> void grid_discard_round(Gen &g, int round, Tally &t) {
+  g.unit = round % 2 ? 1.0 : 0.5;
+  g.extent = 12 + 8 * (round % 4);
+  std::vector<T> scene(std::size_t(std::max(30L, long(scaled(400)))));
+  for (T &s : scene) g.any(s);
+  const int split = 1 + round % 5, depth = (round % 3) * 3; // depth 0: unlimited
+  discard_matches_reference(scene, split, depth, t);
+}
+
 } // namespace
 
 TEST(integer_grid_discard_survivors_match_reference) {
@@ -598,19 +610,9 @@ TEST(integer_grid_discard_survivors_match_reference) {
   Tally t;
   long kept_scenes = 0;
   for (int round = 0; round < scaled(24) + 3; ++round) {
-    g.unit = round % 2 ? 1.0 : 0.5;
-    g.extent = 12 + 8 * (round % 4);
-    const int n = int(std::max(30L, scaled(400)));
-    const int split = 1 + round % 5, depth = (round % 3) * 3; // depth 0: unlimited
-    std::vector<Disk> disks(n);
-    std::vector<Triangle> tris(n);
-    std::vector<Quad> quads(n);
-    for (int i = 0; i < n; ++i) g.any(disks[i]);
-    for (int i = 0; i < n; ++i) g.any(tris[i]);
-    for (int i = 0; i < n; ++i) g.any(quads[i]);
-    discard_matches_reference(disks, split, depth, t);
-    discard_matches_reference(tris, split, depth, t);
-    discard_matches_reference(quads, split, depth, t);
+    grid_discard_round<Disk>(g, round, t);
+    grid_discard_round<Triangle>(g, round, t);
+    grid_discard_round<Quad>(g, round, t);
     ++kept_scenes;
   }
   std::cout << "  integer-grid discard scenes: " << 3 * kept_scenes << ", reference pairs " << t.pairs
@@ -626,12 +628,7 @@ TEST(integer_grid_mixed_discard_survivors_match_reference) {
   Tally t;
   int scenes = 0;
   for (int round = 0; round < scaled(24) + 3; ++round) {
-    g.unit = round % 2 ? 1.0 : 0.5;
-    g.extent = 12 + 8 * (round % 4);
-    const int n = int(std::max(30L, scaled(400)));
-    std::vector<Shape> mixed(n);
-    for (Shape &s : mixed) g.any(s);
-    discard_matches_reference(mixed, 1 + round % 5, (round % 3) * 3, t);
+    grid_discard_round<Shape>(g, round, t);
     ++scenes;
   }
   std::cout << "  integer-grid mixed discard scenes: " << scenes << ", reference pairs " << t.pairs
