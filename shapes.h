@@ -250,8 +250,8 @@ public:
 
 /// Any one shape: a Disk, a Triangle or a Quad. BVH<Shape> holds a scene
 /// that mixes the three kinds (a .shapes file); every member forwards to the
-/// shape held, so a Shape sorts, prints, draws and intersects (intersect.h)
-/// exactly as the shape itself would.
+/// shape held, so a Shape has the box and centre, is drawn (svg.h) and
+/// intersects (intersect.h) exactly as the shape itself.
 ///
 ///   Shape s = Triangle(Point(0, 0), Point(10, 0), Point(0, 10));
 ///   if (const Triangle *t = s.triangle()) std::cout << t->getPoint(1);
@@ -271,16 +271,15 @@ public:
 
   /// The kind of shape held.
   Kind kind() const { return Kind(shape_.index()); }
-  /// The disk held, or nullptr when it is another kind.
-  const Disk *disk() const { return std::get_if<Disk>(&shape_); }
-  /// The triangle held, or nullptr when it is another kind.
-  const Triangle *triangle() const { return std::get_if<Triangle>(&shape_); }
-  /// The quad held, or nullptr when it is another kind.
-  const Quad *quad() const { return std::get_if<Quad>(&shape_); }
-
   /// The shape held as a K (Disk, Triangle or Quad), or nullptr when it is
   /// another kind.
   template <class K> const K *get() const { return std::get_if<K>(&shape_); }
+  /// The disk held, or nullptr when it is another kind.
+  const Disk *disk() const { return get<Disk>(); }
+  /// The triangle held, or nullptr when it is another kind.
+  const Triangle *triangle() const { return get<Triangle>(); }
+  /// The quad held, or nullptr when it is another kind.
+  const Quad *quad() const { return get<Quad>(); }
 
   /// f(shape held), as a `const Disk &`, `const Triangle &` or `const Quad &`.
   // A switch, not std::visit: the variant is never valueless (its
