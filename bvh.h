@@ -42,8 +42,9 @@
 #include <emmintrin.h>
 #endif
 
-#include "distance.h"
-#include "intersect.h"
+// The only project header: with the course's shapes.h (the homework
+// server's) or this project's (which brings in the exact intersect.h and
+// distance.h), everything below compiles.
 #include "shapes.h"
 
 namespace bvh_detail {
@@ -174,6 +175,90 @@ inline float float_up(double d) {
   return static_cast<double>(f) < d ? float_step(f, true) : f;
 }
 
+/// An axis-aligned box in double: the tree's own box arithmetic (union,
+/// containment, overlap, area), so that a shape's box need offer only
+/// getMin() and getMax(), as the course's BoundingBox does (it has no empty
+/// box, no union operator, no containment and no comparison). The default
+/// box is empty: it contains nothing, and extending it gives the other box.
+struct Box {
+  double x0 = std::numeric_limits<double>::infinity(), y0 = std::numeric_limits<double>::infinity();
+  double x1 = -std::numeric_limits<double>::infinity(), y1 = -std::numeric_limits<double>::infinity();
+
+  /// The box of `b`, anything with getMin() and getMax() (points with x, y).
+  template <class B> static Box of(const B &b) {
+    const auto &lo = b.getMin();
+    const auto &hi = b.getMax();
+    return Box{lo.x, lo.y, hi.x, hi.y};
+  }
+  /// The box of one point (anything with x and y).
+  template <class P> static Box at(const P &p) { return Box{p.x, p.y, p.x, p.y}; }
+
+  /// True for the box that contains nothing.
+  bool empty() const { return x0 > x1 || y0 > y1; }
+  /// Width (0 when empty).
+  double dx() const { return empty() ? 0 : x1 - x0; }
+  /// Height (0 when empty).
+  double dy() const { return empty() ? 0 : y1 - y0; }
+  /// Area (0 when empty).
+  double area() const { return dx() * dy(); }
+  /// True when the boxes share a point: touching counts.
+  bool overlaps(const Box &o) const { return x0 <= o.x1 && o.x0 <= x1 && y0 <= o.y1 && o.y0 <= y1; }
+  /// True when `o` lies inside this box, boundaries included.
+  bool contains(const Box &o) const { return x0 <= o.x0 && y0 <= o.y0 && o.x1 <= x1 && o.y1 <= y1; }
+  /// Grows to include `o` (an empty `o` changes nothing).
+  void extend(const Box &o) {
+    x0 = std::min(x0, o.x0);
+    y0 = std::min(y0, o.y0);
+    x1 = std::max(x1, o.x1);
+    y1 = std::max(y1, o.y1);
+  }
+  /// Distance from (px, py) to the box: 0 inside or on it.
+  double distance_to(double px, double py) const {
+    return std::hypot(std::max({x0 - px, 0.0, px - x1}), std::max({y0 - py, 0.0, py - y1}));
+  }
+  /// Where the ray (ox, oy) + t (dx, dy), t >= 0, enters the box: 0 when it
+  /// starts inside, +inf when it misses (slab test).
+  double ray_entry(double ox, double oy, double dx, double dy) const {
+    const double inf = std::numeric_limits<double>::infinity();
+    double t0 = 0, t1 = inf;
+    const double o[2] = {ox, oy}, d[2] = {dx, dy}, lo[2] = {x0, y0}, hi[2] = {x1, y1};
+    for (int k = 0; k < 2; ++k) {
+      if (d[k] == 0) {
+        if (o[k] < lo[k] || o[k] > hi[k]) return inf;
+        continue;
+      }
+      double a = (lo[k] - o[k]) / d[k], b = (hi[k] - o[k]) / d[k];
+      if (a > b) std::swap(a, b);
+      t0 = std::max(t0, a);
+      t1 = std::min(t1, b);
+      if (t0 > t1) return inf;
+    }
+    return t0;
+  }
+  friend bool operator==(const Box &a, const Box &b) {
+    return a.x0 == b.x0 && a.y0 == b.y0 && a.x1 == b.x1 && a.y1 == b.y1;
+  }
+  friend bool operator!=(const Box &a, const Box &b) { return !(a == b); }
+};
+
+/// A point in double, from anything with x and y.
+struct XY {
+  double x, y;
+  template <class P> static XY of(const P &p) { return XY{p.x, p.y}; }
+};
+
+/// The box of a stored shape, read through getBox().getMin()/getMax().
+template <class T> Box box_of(const T &shape) { return Box::of(shape.getBox()); }
+
+/// Appends `[<x0 y0> <x1 y1>]` with every number as %5.1f: the course's
+/// listing of a box, written here so that neither the stream's flags nor
+/// the shape library's printing can change it.
+inline void append_box(std::string &out, const Box &b) {
+  char buf[1400]; // four %5.1f doubles of any magnitude fit
+  std::snprintf(buf, sizeof buf, "[<%5.1f %5.1f> <%5.1f %5.1f>]", b.x0, b.y0, b.x1, b.y1);
+  out += buf;
+}
+
 /// Working memory reused from one build to the next. Copies of a tree do
 /// not copy it: it holds nothing between calls.
 template <class X> struct Scratch {
@@ -198,6 +283,8 @@ template <class X> struct Scratch {
 /// children from one line. `info_` holds the rest: the exact double box,
 /// parent, depth, shape count and, for leaves, the shapes.
 template <class T> class BVH {
+  using Box = bvh_detail::Box;
+
 public:
   /// `depth_limit` value meaning "no limit" (the course's default of 0).
   static constexpr int unlimited = 0;
@@ -322,7 +409,11 @@ public:
   /// The depth limit (`unlimited`, i.e. 0, for none).
   int depth_limit() const { return depth_limit_; }
   /// The box of everything stored (an empty box when empty).
-  BoundingBox bounds() const { return root_ < 0 ? BoundingBox() : info_[root_].box; }
+  BoundingBox bounds() const {
+    if (root_ < 0) return BoundingBox();
+    const Box &b = info_[root_].box;
+    return BoundingBox(Point(b.x0, b.y0), Point(b.x1, b.y1));
+  }
   /// Number of nodes, inner and leaf.
   std::size_t node_count() const { return nodes_.size() - free_.size(); }
 
@@ -365,7 +456,7 @@ public:
   /// split_threshold shapes above depth_limit, then rebuild the highest
   /// subtree on the path that has grown lopsided (rebalance_path).
   void insert(const T &shape) {
-    const BoundingBox box = shape.getBox();
+    const Box box = bvh_detail::box_of(shape);
     ++size_;
     if (root_ < 0) {
       root_ = new_node(0, -1, 0);
@@ -402,10 +493,10 @@ public:
   /// test is the exact predicate of intersect.h.
   bool collision(const T &shape) const {
     if (root_ < 0) return false;
-    const BoundingBox box = shape.getBox();
+    const Box box = bvh_detail::box_of(shape);
     if (!info_[root_].box.overlaps(box)) return false;
-    const float lo_x = bvh_detail::float_down(box.getMin().x), lo_y = bvh_detail::float_down(box.getMin().y);
-    const float hi_x = bvh_detail::float_up(box.getMax().x), hi_y = bvh_detail::float_up(box.getMax().y);
+    const float lo_x = bvh_detail::float_down(box.x0), lo_y = bvh_detail::float_down(box.y0);
+    const float hi_x = bvh_detail::float_up(box.x1), hi_y = bvh_detail::float_up(box.y1);
     const float mid_x = 0.5f * (lo_x + hi_x), mid_y = 0.5f * (lo_y + hi_y);
     const Probe probe(lo_x, lo_y, hi_x, hi_y, mid_x, mid_y);
     bvh_detail::IndexStack stack;
@@ -459,13 +550,13 @@ public:
   /// Calls f(shape) for every stored shape whose box overlaps `box`
   /// (touching counts). If f returns bool, returning false stops the search.
   template <class F> void query(const BoundingBox &box, F &&f) const {
-    visit_overlapping(box, [&](const T &s) { return keep_going(f, s); });
+    visit_overlapping(Box::of(box), [&](const T &s) { return keep_going(f, s); });
   }
 
   /// Calls f(shape) for every stored shape that intersects `shape` (exact,
   /// touching counts). If f returns bool, returning false stops the search.
   template <class F> void query(const T &shape, F &&f) const {
-    visit_overlapping(shape.getBox(), [&](const T &s) { return !intersect(s, shape) || keep_going(f, s); });
+    visit_overlapping(bvh_detail::box_of(shape), [&](const T &s) { return !intersect(s, shape) || keep_going(f, s); });
   }
 
   /// Copies every stored shape that intersects `shape` to `out` (an output
@@ -481,7 +572,7 @@ public:
   /// when the next box is farther than the best shape. Among equally near
   /// shapes it returns one, not a particular one. O(log n) typically.
   const T *nearest(const Point &p, double *dist = nullptr) const {
-    return best_first([&](const BoundingBox &b) { return distance(p, b); },
+    return best_first([&](const Box &b) { return b.distance_to(p.x, p.y); },
                       [&](const T &s) { return distance(p, s); }, dist);
   }
 
@@ -490,7 +581,7 @@ public:
   /// ray meets none; `*t` gets the ray parameter of the hit. Best-first by
   /// the ray's entry into each box, as nearest().
   const T *first_hit(const Point &origin, const Point &direction, double *t = nullptr) const {
-    return best_first([&](const BoundingBox &b) { return ray_hit(origin, direction, b); },
+    return best_first([&](const Box &b) { return b.ray_entry(origin.x, origin.y, direction.x, direction.y); },
                       [&](const T &s) { return ray_hit(origin, direction, s); }, t);
   }
 
@@ -511,7 +602,8 @@ public:
           const std::vector<T> &v = info_[a].shapes;
           for (std::size_t i = 0; i < v.size(); ++i)
             for (std::size_t j = i + 1; j < v.size(); ++j)
-              if (v[i].getBox().overlaps(v[j].getBox()) && intersect(v[i], v[j]) && !keep_going(f, v[i], v[j]))
+              if (bvh_detail::box_of(v[i]).overlaps(bvh_detail::box_of(v[j])) && intersect(v[i], v[j]) &&
+                  !keep_going(f, v[i], v[j]))
                 return;
           continue;
         }
@@ -526,11 +618,12 @@ public:
       if (na.num_children == 0 && nb.num_children == 0) {
         for (const T &s : info_[a].shapes)
           for (const T &u : info_[b].shapes)
-            if (s.getBox().overlaps(u.getBox()) && intersect(s, u) && !keep_going(f, s, u)) return;
+            if (bvh_detail::box_of(s).overlaps(bvh_detail::box_of(u)) && intersect(s, u) && !keep_going(f, s, u))
+              return;
         continue;
       }
       // Open the inner node of the two, the larger box when both are.
-      if (na.num_children == 0 || (nb.num_children != 0 && info_[b].box.getArea() > info_[a].box.getArea()))
+      if (na.num_children == 0 || (nb.num_children != 0 && info_[b].box.area() > info_[a].box.area()))
         std::swap(a, b);
       const Node &open = nodes_[a];
       for (int c = 0; c < open.num_children; ++c)
@@ -560,7 +653,7 @@ public:
     for_each_preorder([&](int n) {
       const Info &in = info_[n];
       const bool leaf = nodes_[n].num_children == 0;
-      const double area = in.box.getArea() / kCanvasArea;
+      const double area = in.box.area() / kCanvasArea;
       ++node_count;
       max_depth = std::max(max_depth, in.depth);
       if (leaf)
@@ -573,12 +666,19 @@ public:
       // decimals.
       std::snprintf(buf, sizeof buf, n == root_ ? "%.3g" : "%.3f", area);
       line.assign(std::size_t(3) * std::size_t(in.depth), ' ');
-      ostr << line << (leaf ? "leaf area=" : "inner area=") << buf << " " << in.box;
+      line += leaf ? "leaf area=" : "inner area=";
+      line += buf;
+      line += ' ';
+      bvh_detail::append_box(line, in.box);
       if (leaf) {
-        ostr << " elements:";
-        for (const T &s : in.shapes) ostr << " " << s.getBox();
+        line += " elements:";
+        for (const T &s : in.shapes) {
+          line += ' ';
+          bvh_detail::append_box(line, bvh_detail::box_of(s));
+        }
       }
-      ostr << "\n";
+      line += '\n';
+      ostr << line;
     });
     std::snprintf(buf, sizeof buf, "node count:      %7ld\n", node_count);
     ostr << buf;
@@ -593,18 +693,30 @@ public:
 
   /// Draws every node's box translucently (root grey, its children red,
   /// green and blue, deeper children blended 2/3 parent and 1/3 their own
-  /// primary) and recolours every shape to the colour of its leaf.
+  /// primary) and recolours every shape to the colour of its leaf. Boxes
+  /// are drawn by the shape library's BoundingBox::render; colours are
+  /// made with Color(r, g, b) and given to T::setColor.
   void render_recolor(std::ostream &ostr) {
     if (root_ < 0) return;
-    static const Color primary[3] = {Color(255, 0, 0), Color(0, 255, 0), Color(0, 0, 255)};
-    std::vector<Color> color(info_.size());
-    color[root_] = Color(128, 128, 128);
+    struct Rgb {
+      int r, g, b;
+    };
+    static const Rgb primary[3] = {{255, 0, 0}, {0, 255, 0}, {0, 0, 255}};
+    // Channels mixed here, as Color::mix would (the course's mix returns
+    // nothing and this project's returns the mix: neither is relied on).
+    auto blend = [](const Rgb &parent, const Rgb &own) {
+      const float f = 2.0f / 3.0f;
+      return Rgb{int(parent.r * f + own.r * (1 - f)), int(parent.g * f + own.g * (1 - f)),
+                 int(parent.b * f + own.b * (1 - f))};
+    };
+    std::vector<Rgb> rgb(info_.size());
+    rgb[root_] = Rgb{128, 128, 128};
     for_each_preorder([&](int n) {
       Info &in = info_[n];
-      if (in.parent >= 0)
-        color[n] = in.parent == root_ ? primary[in.slot] : color[in.parent].mix(primary[in.slot], 2.0f / 3.0f);
-      in.box.render(ostr, color[n]);
-      for (T &s : in.shapes) s.setColor(color[n]);
+      if (in.parent >= 0) rgb[n] = in.parent == root_ ? primary[in.slot] : blend(rgb[in.parent], primary[in.slot]);
+      const Color color(rgb[n].r, rgb[n].g, rgb[n].b);
+      BoundingBox(Point(in.box.x0, in.box.y0), Point(in.box.x1, in.box.y1)).render(ostr, color);
+      for (T &s : in.shapes) s.setColor(color);
     });
   }
 
@@ -634,7 +746,7 @@ public:
       const Node &node = nodes_[n];
       const Info &in = info_[n];
       if (is_free[n]) ok = fail(n, "reachable node on the free list");
-      BoundingBox tight;
+      Box tight;
       std::size_t count = 0;
       if (n == root_) {
         if (in.parent != -1 || in.depth != 0) ok = fail(n, "root has a parent or depth != 0");
@@ -643,10 +755,10 @@ public:
         if (in.depth != info_[in.parent].depth + 1) ok = fail(n, "depth is not parent's + 1");
         if (in.slot < 0 || in.slot >= p.num_children || p.child[in.slot] != n)
           ok = fail(n, "parent does not list it in its slot");
-        else if (p.lo_x[in.slot] != bvh_detail::float_down(in.box.getMin().x) ||
-                 p.lo_y[in.slot] != bvh_detail::float_down(in.box.getMin().y) ||
-                 p.hi_x[in.slot] != bvh_detail::float_up(in.box.getMax().x) ||
-                 p.hi_y[in.slot] != bvh_detail::float_up(in.box.getMax().y))
+        else if (p.lo_x[in.slot] != bvh_detail::float_down(in.box.x0) ||
+                 p.lo_y[in.slot] != bvh_detail::float_down(in.box.y0) ||
+                 p.hi_x[in.slot] != bvh_detail::float_up(in.box.x1) ||
+                 p.hi_y[in.slot] != bvh_detail::float_up(in.box.y1))
           ok = fail(n, "parent's float box for it is not its box rounded outwards");
       }
       if (depth_limit_ != unlimited && in.depth > depth_limit_) ok = fail(n, "deeper than depth_limit");
@@ -654,7 +766,7 @@ public:
         if (in.shapes.empty()) ok = fail(n, "empty leaf");
         if (int(in.shapes.size()) > split_threshold_ && may_split_at(in.depth))
           ok = fail(n, "leaf over split_threshold above depth_limit");
-        for (const T &s : in.shapes) tight.extend(s.getBox());
+        for (const T &s : in.shapes) tight.extend(bvh_detail::box_of(s));
         count = in.shapes.size();
         counted += count;
       } else {
@@ -693,7 +805,7 @@ private:
     std::int32_t num_children; // 0: leaf
   };
   struct Info { // cold: exact geometry, links, shapes
-    BoundingBox box;
+    Box box;
     std::int32_t parent = -1; // -1 for the root
     std::int32_t slot = 0;    // index in the parent's child[]
     std::int32_t depth = 0;
@@ -715,7 +827,7 @@ private:
     }
     nodes_[n] = Node();
     Info &in = info_[n];
-    in.box = BoundingBox();
+    in.box = Box();
     in.depth = depth;
     in.parent = parent;
     in.slot = slot;
@@ -729,12 +841,12 @@ private:
     free_.push_back(n);
   }
 
-  void set_child_box(int parent, int slot, const BoundingBox &box) {
+  void set_child_box(int parent, int slot, const Box &box) {
     Node &p = nodes_[parent];
-    p.lo_x[slot] = bvh_detail::float_down(box.getMin().x);
-    p.lo_y[slot] = bvh_detail::float_down(box.getMin().y);
-    p.hi_x[slot] = bvh_detail::float_up(box.getMax().x);
-    p.hi_y[slot] = bvh_detail::float_up(box.getMax().y);
+    p.lo_x[slot] = bvh_detail::float_down(box.x0);
+    p.lo_y[slot] = bvh_detail::float_down(box.y0);
+    p.hi_x[slot] = bvh_detail::float_up(box.x1);
+    p.hi_y[slot] = bvh_detail::float_up(box.y1);
   }
 
   struct Probe { // a query box rounded outwards to float, and its centre
@@ -789,9 +901,9 @@ private:
   /// Boxes are the children's float boxes (rounded outwards) kept in the
   /// parent, so the choice reads one cache line; areas are computed in
   /// double from those floats.
-  int choose_child(int n, const BoundingBox &box) const {
+  int choose_child(int n, const Box &box) const {
     const Node &node = nodes_[n];
-    const double bx0 = box.getMin().x, by0 = box.getMin().y, bx1 = box.getMax().x, by1 = box.getMax().y;
+    const double bx0 = box.x0, by0 = box.y0, bx1 = box.x1, by1 = box.y1;
     int best = 0;
     double best_growth = 0, best_area = 0;
     for (int c = 0; c < node.num_children; ++c) {
@@ -850,7 +962,7 @@ private:
 
   /// Calls visit(shape) on each shape whose box overlaps `box`, until it
   /// returns false.
-  template <class V> void visit_overlapping(const BoundingBox &box, V &&visit) const {
+  template <class V> void visit_overlapping(const Box &box, V &&visit) const {
     if (root_ < 0 || !info_[root_].box.overlaps(box)) return;
     bvh_detail::IndexStack stack;
     stack.push(root_);
@@ -859,7 +971,7 @@ private:
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
         for (const T &s : info_[n].shapes)
-          if (s.getBox().overlaps(box) && !visit(s)) return;
+          if (bvh_detail::box_of(s).overlaps(box) && !visit(s)) return;
         continue;
       }
       for (int c = node.num_children - 1; c >= 0; --c)
@@ -931,7 +1043,7 @@ private:
 
   /// Finds a stored shape equal to `value`: its leaf and index.
   bool find_equal(const T &value, int &leaf, std::size_t &index) const {
-    const BoundingBox box = value.getBox();
+    const Box box = bvh_detail::box_of(value);
     if (root_ < 0 || !info_[root_].box.contains(box)) return false;
     bvh_detail::IndexStack stack;
     stack.push(root_);
@@ -978,9 +1090,9 @@ private:
     for (int n = leaf; n >= 0; n = info_[n].parent) {
       Info &in = info_[n];
       --in.count;
-      BoundingBox box;
+      Box box;
       if (nodes_[n].num_children == 0)
-        for (const T &s : in.shapes) box.extend(s.getBox());
+        for (const T &s : in.shapes) box.extend(bvh_detail::box_of(s));
       else
         for (int c = 0; c < nodes_[n].num_children; ++c)
           if (info_[nodes_[n].child[c]].count != 0) box.extend(info_[nodes_[n].child[c]].box);
@@ -1020,8 +1132,8 @@ private:
       const Range t = tasks.back();
       tasks.pop_back();
       Info &in = info_[t.node];
-      BoundingBox box;
-      for (std::size_t i = t.begin; i < t.end; ++i) box.extend(shapes[i].getBox());
+      Box box;
+      for (std::size_t i = t.begin; i < t.end; ++i) box.extend(bvh_detail::box_of(shapes[i]));
       const std::size_t n = t.end - t.begin;
       in.box = box;
       in.count = n;
@@ -1101,10 +1213,10 @@ private:
       const Range t = tasks.back();
       tasks.pop_back();
       Info &in = info_[t.node];
-      BoundingBox box, centres;
+      Box box, centres;
       for (std::size_t i = t.begin; i < t.end; ++i) {
-        box.extend(v[i].getBox());
-        centres.extend(v[i].getCenter());
+        box.extend(bvh_detail::box_of(v[i]));
+        centres.extend(Box::at(v[i].getCenter()));
       }
       const std::size_t n = t.end - t.begin;
       in.box = box;
@@ -1120,19 +1232,19 @@ private:
       double best_cost = std::numeric_limits<double>::infinity();
       int best_axis = -1, best_i = 0, best_j = 0;
       for (int axis = 0; axis < 2; ++axis) {
-        const double lo = axis ? centres.getMin().y : centres.getMin().x;
-        const double extent = (axis ? centres.getMax().y : centres.getMax().x) - lo;
+        const double lo = axis ? centres.y0 : centres.x0;
+        const double extent = (axis ? centres.y1 : centres.x1) - lo;
         if (!(extent > 0)) continue;
-        BoundingBox bin_box[kSahBins];
+        Box bin_box[kSahBins];
         std::size_t bin_count[kSahBins] = {};
         for (std::size_t i = t.begin; i < t.end; ++i) {
           const double c = axis ? v[i].getCenter().y : v[i].getCenter().x;
           const int b = std::min(kSahBins - 1, int(double(kSahBins) * (c - lo) / extent));
-          bin_box[b].extend(v[i].getBox());
+          bin_box[b].extend(bvh_detail::box_of(v[i]));
           ++bin_count[b];
         }
         // Groups: bins [0, i), [i, j), [j, kSahBins).
-        BoundingBox prefix[kSahBins + 1], suffix[kSahBins + 1];
+        Box prefix[kSahBins + 1], suffix[kSahBins + 1];
         std::size_t prefix_n[kSahBins + 1] = {}, suffix_n[kSahBins + 1] = {};
         for (int b = 0; b < kSahBins; ++b) {
           prefix[b + 1] = prefix[b];
@@ -1146,14 +1258,14 @@ private:
         }
         for (int i = 1; i < kSahBins - 1; ++i) {
           if (prefix_n[i] == 0) continue;
-          BoundingBox middle;
+          Box middle;
           std::size_t middle_n = 0;
           for (int j = i + 1; j < kSahBins; ++j) {
             middle.extend(bin_box[j - 1]);
             middle_n += bin_count[j - 1];
             if (middle_n == 0 || suffix_n[j] == 0) continue;
-            const double cost = prefix[i].getArea() * double(prefix_n[i]) + middle.getArea() * double(middle_n) +
-                                suffix[j].getArea() * double(suffix_n[j]);
+            const double cost = prefix[i].area() * double(prefix_n[i]) + middle.area() * double(middle_n) +
+                                suffix[j].area() * double(suffix_n[j]);
             if (cost < best_cost) {
               best_cost = cost;
               best_axis = axis;
@@ -1166,8 +1278,8 @@ private:
       std::size_t cut[4] = {t.begin, 0, 0, t.end};
       if (best_axis >= 0) {
         // The chosen axis's bins, as computed above.
-        const double lo = best_axis ? centres.getMin().y : centres.getMin().x;
-        const double extent = (best_axis ? centres.getMax().y : centres.getMax().x) - lo;
+        const double lo = best_axis ? centres.y0 : centres.x0;
+        const double extent = (best_axis ? centres.y1 : centres.x1) - lo;
         auto bin_of = [&](const T &s) {
           const double c = best_axis ? s.getCenter().y : s.getCenter().x;
           return std::min(kSahBins - 1, int(double(kSahBins) * (c - lo) / extent));
@@ -1229,16 +1341,18 @@ private:
     // index at the leaves was a cache miss per shape: 18% of a 1M build).
     std::vector<Item> &items = scratch_.value.items;
     std::vector<Task> &tasks = scratch_.value.tasks;
-    items.resize(count);
-    for (std::size_t i = 0; i < count; ++i) items[i] = make_item(shapes[i], std::uint32_t(i));
+    // (clear and append, not resize: T need not be default-constructible)
+    items.clear();
+    items.reserve(count);
+    for (std::size_t i = 0; i < count; ++i) items.push_back(make_item(shapes[i], std::uint32_t(i)));
     tasks.clear();
     tasks.push_back({at, 0, count, 0u, Key{0, false}, false});
     const auto first = items.begin();
     while (!tasks.empty()) {
       const Task t = tasks.back();
       tasks.pop_back();
-      BoundingBox node_box;
-      for (std::size_t i = t.begin; i < t.end; ++i) node_box.extend(items[i].shape.getBox());
+      Box node_box;
+      for (std::size_t i = t.begin; i < t.end; ++i) node_box.extend(bvh_detail::box_of(items[i].shape));
       const std::size_t n = t.end - t.begin;
       Info &in = info_[t.node];
       in.box = node_box;
@@ -1295,15 +1409,15 @@ private:
   /// copy, 48 bytes instead of 64 for a disk, which the selections move.
   static constexpr bool kCenterStored = std::is_reference<decltype(std::declval<const T &>().getCenter())>::value;
   struct CachedCenter { // a triangle's or quad's centre is a sum: computed once
-    Point center;
+    bvh_detail::XY center;
     T shape;
     std::uint32_t index; // input position: the last tie-break
-    const Point &centre() const { return center; }
+    const bvh_detail::XY &centre() const { return center; }
   };
   struct StoredCenter {
     T shape;
     std::uint32_t index;
-    const Point &centre() const { return shape.getCenter(); }
+    decltype(auto) centre() const { return shape.getCenter(); }
   };
   /// One shape during a build.
   using Item = typename std::conditional<kCenterStored, StoredCenter, CachedCenter>::type;
@@ -1311,7 +1425,7 @@ private:
     if constexpr (kCenterStored)
       return Item{shape, index};
     else
-      return Item{shape.getCenter(), shape, index};
+      return Item{bvh_detail::XY::of(shape.getCenter()), shape, index};
   }
   struct Key { // the order of one node: see build_subtree
     int axis;       // 0: x, 1: y
@@ -1322,7 +1436,8 @@ private:
   /// axis costs a branch per coordinate read.
   template <int Axis, bool OtherToo> struct Order {
     bool operator()(const Item &a, const Item &b) const {
-      const Point &p = a.centre(), &q = b.centre();
+      const auto &p = a.centre();
+      const auto &q = b.centre();
       const double pa = Axis == 0 ? p.x : p.y, qa = Axis == 0 ? q.x : q.y;
       if (pa != qa) return pa < qa;
       if (OtherToo) {

@@ -11,6 +11,9 @@
 // exact) with a relative error of a few units in the last place. Triangles
 // and quads may be degenerate (segments, points) and quads non-convex: the
 // boundary is the polygon's edges in order. O(1) per call.
+// shapes.h first, outside the guard, as in intersect.h.
+#include "shapes.h"
+
 #ifndef BVH_DISTANCE_H
 #define BVH_DISTANCE_H
 
@@ -19,7 +22,6 @@
 #include <limits>
 
 #include "intersect.h"
-#include "shapes.h"
 
 namespace bvh_distance_detail {
 
@@ -116,34 +118,6 @@ inline double distance(const Point &p, const Shape &s) {
 /// ray_hit on the shape held, whichever kind it is.
 inline double ray_hit(const Point &origin, const Point &dir, const Shape &s) {
   return s.visit([&](const auto &shape) { return ray_hit(origin, dir, shape); });
-}
-
-/// Distance from `p` to the box (0 inside or on it).
-inline double distance(const Point &p, const BoundingBox &box) {
-  const double dx = std::max({box.getMin().x - p.x, 0.0, p.x - box.getMax().x});
-  const double dy = std::max({box.getMin().y - p.y, 0.0, p.y - box.getMax().y});
-  return std::hypot(dx, dy);
-}
-
-/// Where the ray origin + t * dir (t >= 0) enters the box: 0 when the
-/// origin is inside, +inf when it misses (slab test).
-inline double ray_hit(const Point &origin, const Point &dir, const BoundingBox &box) {
-  const double inf = std::numeric_limits<double>::infinity();
-  double t0 = 0, t1 = inf;
-  const double o[2] = {origin.x, origin.y}, d[2] = {dir.x, dir.y};
-  const double lo[2] = {box.getMin().x, box.getMin().y}, hi[2] = {box.getMax().x, box.getMax().y};
-  for (int k = 0; k < 2; ++k) {
-    if (d[k] == 0) {
-      if (o[k] < lo[k] || o[k] > hi[k]) return inf;
-      continue;
-    }
-    double a = (lo[k] - o[k]) / d[k], b = (hi[k] - o[k]) / d[k];
-    if (a > b) std::swap(a, b);
-    t0 = std::max(t0, a);
-    t1 = std::min(t1, b);
-    if (t0 > t1) return inf;
-  }
-  return t0;
 }
 
 #endif // BVH_DISTANCE_H

@@ -31,6 +31,11 @@
 // too close to zero for its bound (touching or within ~1e-15 relative of it)
 // does it fall back to exact expansion arithmetic (tens to a few thousand
 // flops, on the stack).
+// shapes.h first, outside the guard: shapes.h includes this file at its
+// end, so whichever of the two is included first, the shapes are complete
+// before the predicates.
+#include "shapes.h"
+
 #ifndef BVH_INTERSECT_H
 #define BVH_INTERSECT_H
 
@@ -38,8 +43,6 @@
 #include <cfloat>
 #include <cmath>
 #include <limits>
-
-#include "shapes.h"
 
 #if defined(__GNUC__)
 #define BVH_EXACT_COLD __attribute__((noinline, cold))
