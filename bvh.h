@@ -1,7 +1,11 @@
 // bvh.h — BVH<T>: a ternary bounding volume hierarchy over 2D shapes
-// (Disk, Triangle, Quad from shapes.h, or Shape for mixed scenes), built in
-// bulk or one shape at a time, answering "does this shape touch anything
-// stored?" exactly.
+// (Disk, Triangle, Quad from shapes.h, Shape for mixed scenes, or a shape
+// type of your own), built in bulk or one shape at a time, answering "does
+// this shape touch anything stored?" with the shapes' own intersect().
+//
+// One self-contained header: it includes only the standard library and
+// "shapes.h", so it also compiles as a homework submission next to the
+// course's own shapes.h and utils.h (README.txt, "Submitting bvh.h").
 //
 //   BVH<Disk> tree(/*split_threshold=*/4, /*depth_limit=*/0);  // 0: unlimited
 //   tree.construct(disks);                   // bulk build, the course's rule
@@ -17,8 +21,10 @@
 // are iterative, so no input can overflow the stack.
 //
 // Where to look: the build rule is `build_subtree`; the insertion strategy is
-// `choose_child` plus `rebalance_path`; the intersection predicates are in
-// intersect.h.
+// `choose_child` plus `rebalance_path`; the tree's box arithmetic is
+// `bvh_detail::Box`; the intersection predicates are the free intersect()
+// of the shape type, found by argument-dependent lookup (this project's
+// exact ones are in intersect.h, which shapes.h brings in).
 #ifndef BVH_BVH_H
 #define BVH_BVH_H
 
@@ -272,9 +278,17 @@ template <class X> struct Scratch {
 
 /// A ternary bounding volume hierarchy over shapes of type T.
 ///
-/// T needs `getBox()`, `getCenter()`, `setColor()` and a free
-/// `intersect(const T&, const T&)`. Shapes live only in leaves, each exactly
-/// once; every node knows the tight box of its subtree.
+/// What T must provide (the course's shapes provide exactly this):
+///  - copy construction and assignment;
+///  - `getBox()`, whose `getMin()` and `getMax()` have double `x` and `y`;
+///  - `getCenter()`, with double `x` and `y` (the build rule sorts by it);
+///  - a free `intersect(const T&, const T&)` found by argument-dependent
+///    lookup (collision, query by shape, all pairs).
+/// A few members need more, say so, and compile only when used:
+/// erase(value) needs `==`, nearest() a free `distance(const Point&, const
+/// T&)`, first_hit() a free `ray_hit(const Point&, const Point&, const T&)`,
+/// render_recolor() `setColor(const Color&)`. Shapes live only in leaves,
+/// each exactly once; every node knows the tight box of its subtree.
 ///
 /// Storage: nodes live in two parallel arrays (bvh_detail::BlockVector).
 /// `nodes_` holds what queries
@@ -408,7 +422,8 @@ public:
   int split_threshold() const { return split_threshold_; }
   /// The depth limit (`unlimited`, i.e. 0, for none).
   int depth_limit() const { return depth_limit_; }
-  /// The box of everything stored (an empty box when empty).
+  /// The box of everything stored; a default BoundingBox when empty (with
+  /// this project's shapes.h an empty box, with the course's the origin).
   BoundingBox bounds() const {
     if (root_ < 0) return BoundingBox();
     const Box &b = info_[root_].box;
@@ -490,7 +505,8 @@ public:
 
   /// True iff some stored shape intersects `shape` (touching counts).
   /// Subtrees whose box misses the shape's box are never visited; the final
-  /// test is the exact predicate of intersect.h.
+  /// test is T's intersect() (for this project's shapes, intersect.h's
+  /// exact predicate; on the course's server, the course's own).
   bool collision(const T &shape) const {
     if (root_ < 0) return false;
     const Box box = bvh_detail::box_of(shape);
@@ -533,9 +549,10 @@ public:
     return iterator_at(rank);
   }
 
-  /// Removes every stored shape equal to `value` (operator==) and returns
-  /// how many there were. Only subtrees whose box holds value's box are
-  /// searched.
+  /// Removes every stored shape equal to `value` and returns how many there
+  /// were. Only subtrees whose box holds value's box are searched. Needs
+  /// `operator==` on T (the course's shapes have none: there, erase by
+  /// iterator), and compiles only when used.
   std::size_t erase(const T &value) {
     std::size_t removed = 0;
     int leaf;
@@ -553,8 +570,9 @@ public:
     visit_overlapping(Box::of(box), [&](const T &s) { return keep_going(f, s); });
   }
 
-  /// Calls f(shape) for every stored shape that intersects `shape` (exact,
-  /// touching counts). If f returns bool, returning false stops the search.
+  /// Calls f(shape) for every stored shape that intersects `shape` (by T's
+  /// intersect(): exact, touching counts, for this project's shapes). If f
+  /// returns bool, returning false stops the search.
   template <class F> void query(const T &shape, F &&f) const {
     visit_overlapping(bvh_detail::box_of(shape), [&](const T &s) { return !intersect(s, shape) || keep_going(f, s); });
   }
@@ -566,9 +584,10 @@ public:
     return out;
   }
 
-  /// A stored shape at the least distance from `p` (distance.h: 0 when p is
-  /// inside or on it), or nullptr when the tree is empty; `*dist` gets the
-  /// distance. Best-first: nodes in order of their box's distance, stopping
+  /// A stored shape at the least distance from `p` (by a free
+  /// `distance(p, shape)`, as distance.h gives this project's shapes: 0 when
+  /// p is inside or on it; needed only when this is used), or nullptr when
+  /// the tree is empty; `*dist` gets the distance. Best-first: nodes in order of their box's distance, stopping
   /// when the next box is farther than the best shape. Among equally near
   /// shapes it returns one, not a particular one. O(log n) typically.
   const T *nearest(const Point &p, double *dist = nullptr) const {
@@ -579,14 +598,16 @@ public:
   /// The first stored shape met by the ray origin + t * direction, t >= 0
   /// (t = 0 when the origin lies inside or on a shape), or nullptr when the
   /// ray meets none; `*t` gets the ray parameter of the hit. Best-first by
-  /// the ray's entry into each box, as nearest().
+  /// the ray's entry into each box, as nearest(). Needs a free
+  /// `ray_hit(origin, direction, shape)` (distance.h), only when used.
   const T *first_hit(const Point &origin, const Point &direction, double *t = nullptr) const {
     return best_first([&](const Box &b) { return b.ray_entry(origin.x, origin.y, direction.x, direction.y); },
                       [&](const T &s) { return ray_hit(origin, direction, s); }, t);
   }
 
   /// Calls f(a, b) once for every unordered pair of stored shapes that
-  /// intersect (exact, touching counts); if f returns bool, false stops.
+  /// intersect (by T's intersect(); exact, touching counts, for this
+  /// project's shapes); if f returns bool, false stops.
   /// A simultaneous traversal of the tree against itself: a pair of nodes
   /// is opened only when their boxes overlap, so the cost is O(n log n + k)
   /// for k pairs on well-spread scenes, against O(n^2) for a scan.

@@ -180,6 +180,20 @@ else
 fi
 
 # ---------------------------------------------------------------------------
+# 3b. bvh.h alone in the course's framework (stand-ins written from the
+# spec), as the homework server builds it: tests/course_framework.sh.
+COURSE_DATA="$COURSE_DATA" CXX="$CXX" run_suite course_framework bash tests/course_framework.sh
+
+# 3c. The examples README quotes: built with -Werror, run (each checks its
+# own results against brute force), and quoted verbatim.
+for example in examples/*.cpp; do
+  name=example_$(basename "$example" .cpp)
+  run_case "$name" bash -c "'$CXX' -std=c++17 -O2 -Wall -Wextra -pedantic -Werror -I. '$example' -o '$BUILD/$name' &&
+    '$BUILD/$name'"
+done
+run_case readme_quotes_examples python3 tests/readme_quotes.py
+
+# ---------------------------------------------------------------------------
 # 4. Every picture is well-formed XML.
 if command -v xmllint >/dev/null 2>&1; then
   for html in "$OUT"/*.html; do
