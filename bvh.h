@@ -33,6 +33,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
 #include <iterator>
@@ -53,7 +54,27 @@
 // distance.h), everything below compiles.
 #include "shapes.h"
 
+// BVH_ASSERT(condition, message): checks of the caller's preconditions
+// (iterators past the ends, erasing end() or another tree's iterator). On
+// unless NDEBUG is defined; then a failed check prints the message and
+// aborts. Define BVH_ASSERT before including bvh.h to handle misuse your own
+// way (throw, log), or as ((void)0) to drop the checks.
+#ifndef BVH_ASSERT
+#ifdef NDEBUG
+#define BVH_ASSERT(condition, message) ((void)0)
+#else
+#define BVH_ASSERT(condition, message)                                                                                \
+  ((condition) ? (void)0 : ::bvh_detail::assertion_failed(message, #condition, __FILE__, __LINE__))
+#endif
+#endif
+
 namespace bvh_detail {
+
+/// BVH_ASSERT's report: what was misused, where, then abort().
+[[noreturn]] inline void assertion_failed(const char *message, const char *condition, const char *file, int line) {
+  std::fprintf(stderr, "%s:%d: BVH misuse: %s (%s)\n", file, line, message, condition);
+  std::abort();
+}
 
 /// A stack of node indices that lives on the call stack until it outgrows
 /// its inline space: traversals of shallow trees never allocate, deep ones
@@ -303,9 +324,10 @@ public:
   /// `depth_limit` value meaning "no limit" (the course's default of 0).
   static constexpr int unlimited = 0;
 
-  /// An empty tree. A node holding more than `split_threshold` (>= 1)
-  /// shapes is split unless it is at depth `depth_limit` (root = depth 0;
-  /// `depth_limit <= 0` means unlimited).
+  /// An empty tree. A node holding more than `split_threshold` shapes is
+  /// split unless it is at depth `depth_limit` (root = depth 0;
+  /// `depth_limit <= 0` means unlimited). A `split_threshold` below 1 is
+  /// taken as 1 (every leaf then holds one shape, above the depth limit).
   explicit BVH(int split_threshold = 4, int depth_limit = unlimited)
       : split_threshold_(split_threshold < 1 ? 1 : split_threshold),
         depth_limit_(depth_limit <= 0 ? unlimited : depth_limit) {}
@@ -356,28 +378,35 @@ public:
     /// A singular iterator; only assignment and comparison are valid.
     iterator() = default;
 
-    /// The shape it points to.
-    reference operator*() const { return tree_->info_[leaf_].shapes[index_]; }
+    /// The shape it points to (not end()).
+    reference operator*() const {
+      BVH_ASSERT(tree_ != nullptr && leaf_ >= 0, "dereferencing end() or a singular iterator");
+      return tree_->info_[leaf_].shapes[index_];
+    }
     /// Member access on the shape it points to.
     pointer operator->() const { return &**this; }
 
-    /// Next shape (end() after the last).
+    /// Next shape (end() after the last; not from end()).
     iterator &operator++() {
+      BVH_ASSERT(tree_ != nullptr && leaf_ >= 0, "incrementing end() or a singular iterator");
       if (++index_ == tree_->info_[leaf_].shapes.size()) {
         leaf_ = tree_->next_leaf(leaf_);
         index_ = 0;
       }
       return *this;
     }
-    /// Previous shape (from end(): the last shape).
+    /// Previous shape (from end(): the last shape; not from begin()).
     iterator &operator--() {
+      BVH_ASSERT(tree_ != nullptr, "decrementing a singular iterator");
       if (leaf_ < 0) {
+        BVH_ASSERT(tree_->root_ >= 0, "decrementing end() of an empty tree");
         leaf_ = tree_->rightmost_leaf(tree_->root_);
         index_ = tree_->info_[leaf_].shapes.size() - 1;
       } else if (index_ > 0) {
         --index_;
       } else {
         leaf_ = tree_->prev_leaf(leaf_);
+        BVH_ASSERT(leaf_ >= 0, "decrementing begin()");
         index_ = tree_->info_[leaf_].shapes.size() - 1;
       }
       return *this;
@@ -544,6 +573,12 @@ public:
   /// erasing while iterating (`it = tree.erase(it)`) visits each shape once.
   /// O(log n) amortized: see erase_at() for the repairs.
   iterator erase(iterator pos) {
+    BVH_ASSERT(pos.tree_ == this, "erase() with an iterator of another tree (or a singular one)");
+    BVH_ASSERT(pos.leaf_ >= 0, "erase(end())");
+    // Catches most stale iterators (changes invalidate them), not all.
+    BVH_ASSERT(std::size_t(pos.leaf_) < nodes_.size() && nodes_[pos.leaf_].num_children == 0 &&
+                   pos.index_ < info_[pos.leaf_].shapes.size(),
+               "erase() with an invalidated iterator");
     const std::size_t rank = rank_of(pos);
     erase_at(pos.leaf_, pos.index_);
     return iterator_at(rank);

@@ -95,6 +95,26 @@ BVH_TEST_SCALE=0.3 run_suite test_intersect_sanitized "$BUILD/test_intersect_san
 BVH_TEST_SCALE=0.5 run_suite test_dynamic_sanitized "$BUILD/test_dynamic_san"
 BVH_TEST_SCALE=0.1 run_suite test_parse_sanitized "$BUILD/test_parse_san"
 
+# BVH_ASSERT (tests/test_asserts.cpp): in a debug build each misuse of the
+# API aborts with a "BVH misuse" message; correct use near the edges fires
+# nothing; -DNDEBUG compiles the checks away; a user's own BVH_ASSERT (here
+# one that throws) replaces the default for every check.
+assert_flags=(-std=c++17 -O1 -g -Wall -Wextra -pedantic -Werror -I.)
+if "$CXX" "${assert_flags[@]}" tests/test_asserts.cpp -o "$BUILD/test_asserts" >"$LOGS/asserts_build.log" 2>&1 &&
+  "$CXX" "${assert_flags[@]}" -DNDEBUG tests/test_asserts.cpp -o "$BUILD/test_asserts_ndebug" >>"$LOGS/asserts_build.log" 2>&1 &&
+  "$CXX" "${assert_flags[@]}" -DBVH_TEST_THROWING_ASSERT tests/test_asserts.cpp -o "$BUILD/test_asserts_throwing" \
+    >>"$LOGS/asserts_build.log" 2>&1; then
+  for c in $("$BUILD/test_asserts" list); do
+    run_case "bvh_assert_$c" bash -c "! '$BUILD/test_asserts' $c >'$OUT/assert_$c.out' 2>&1 &&
+      grep -q 'BVH misuse' '$OUT/assert_$c.out'"
+  done
+  run_case bvh_assert_quiet_on_valid_use "$BUILD/test_asserts" valid
+  run_case bvh_assert_off_under_ndebug "$BUILD/test_asserts_ndebug" valid
+  run_case bvh_assert_user_handler "$BUILD/test_asserts_throwing" handler
+else
+  bad bvh_assert_build "see $LOGS/asserts_build.log"
+fi
+
 # ---------------------------------------------------------------------------
 # 3. Golden stdout: tests/golden.list on the course's data and on inputs/.
 golden_folder() { # label data-folder

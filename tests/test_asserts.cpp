@@ -1,0 +1,134 @@
+// tests/test_asserts.cpp — BVH_ASSERT: each misuse of the API that a debug
+// build catches, one per run, so that tests/run.sh can check that each
+// aborts with its message (and that a build with -DNDEBUG compiles the
+// checks away, and that a user's own BVH_ASSERT replaces the default).
+//
+//   build/test_asserts CASE     CASE: one of the names in `cases` below, or
+//                               `valid` (correct use only: exits 0), or
+//                               `handler` (with -DBVH_TEST_THROWING_ASSERT)
+#ifdef BVH_TEST_THROWING_ASSERT
+#include <stdexcept>
+// A user's handler: misuse throws instead of aborting.
+#define BVH_ASSERT(cond, message)                                                                                     \
+  ((cond) ? (void)0 : throw std::logic_error(message))
+#endif
+
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "bvh.h"
+
+namespace {
+
+std::vector<Disk> some_disks() {
+  std::vector<Disk> v;
+  for (int i = 0; i < 20; ++i) v.emplace_back(Point(10.0 * i, 5.0 * (i % 3)), 2.0, Color(0, 0, 0));
+  return v;
+}
+
+struct Case {
+  const char *name;
+  void (*misuse)();
+};
+
+const Case cases[] = {
+    {"deref_end", [] {
+       BVH<Disk> t;
+       t.construct(some_disks());
+       std::printf("%g\n", (*t.end()).getRadius());
+     }},
+    {"arrow_end", [] {
+       BVH<Disk> t;
+       t.construct(some_disks());
+       std::printf("%g\n", t.end()->getRadius());
+     }},
+    {"deref_singular", [] {
+       BVH<Disk>::iterator it;
+       std::printf("%g\n", it->getRadius());
+     }},
+    {"increment_end", [] {
+       BVH<Disk> t;
+       t.construct(some_disks());
+       BVH<Disk>::iterator it = t.end();
+       ++it;
+     }},
+    {"decrement_begin", [] {
+       BVH<Disk> t;
+       t.construct(some_disks());
+       BVH<Disk>::iterator it = t.begin();
+       --it;
+     }},
+    {"decrement_end_of_empty", [] {
+       BVH<Disk> t;
+       BVH<Disk>::iterator it = t.end();
+       it--;
+     }},
+    {"erase_end", [] {
+       BVH<Disk> t;
+       t.construct(some_disks());
+       t.erase(t.end());
+     }},
+    {"erase_other_trees_iterator", [] {
+       BVH<Disk> a, b;
+       a.construct(some_disks());
+       b.construct(some_disks());
+       a.erase(b.begin());
+     }},
+    {"erase_invalidated_iterator", [] {
+       BVH<Disk> t;
+       t.construct(some_disks());
+       BVH<Disk>::iterator last = --t.end();
+       t.clear();
+       t.insert(some_disks()[0]);
+       t.erase(last);
+     }},
+};
+
+} // namespace
+
+int main(int argc, char **argv) {
+  const std::string which = argc > 1 ? argv[1] : "";
+  if (which == "valid") {
+    // Every operation near the edges, used correctly: no assertion fires.
+    BVH<Disk> t;
+    if (t.begin() != t.end()) return 1;
+    t.construct(some_disks());
+    BVH<Disk>::iterator it = t.end();
+    --it;
+    it = t.erase(it);
+    if (it != t.end()) return 1;
+    std::size_t n = 0;
+    for (it = t.begin(); it != t.end();) it = t.erase(it), ++n;
+    return n == 19 && t.empty() ? 0 : 1;
+  }
+#ifdef BVH_TEST_THROWING_ASSERT
+  if (which == "handler") {
+    int caught = 0;
+    for (const Case &c : cases) {
+      try {
+        c.misuse();
+      } catch (const std::logic_error &e) {
+        ++caught;
+        std::printf("%s: %s\n", c.name, e.what());
+      }
+    }
+    const int total = int(sizeof cases / sizeof cases[0]);
+    std::printf("caught %d of %d\n", caught, total);
+    return caught == total ? 0 : 1;
+  }
+#endif
+  for (const Case &c : cases)
+    if (which == c.name) {
+      c.misuse();
+      std::printf("%s: no assertion fired\n", c.name);
+      return 0;
+    }
+  if (which == "list") {
+    for (const Case &c : cases) std::printf("%s\n", c.name);
+    return 0;
+  }
+  std::fprintf(stderr, "usage: test_asserts list|valid|handler|CASE\n");
+  return 2;
+}
