@@ -68,6 +68,14 @@
 #endif
 #endif
 
+// The one traversal routine is inlined into each query that uses it, so
+// that its visit's state (a query's probe) stays in registers.
+#if defined(__GNUC__)
+#define BVH_ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define BVH_ALWAYS_INLINE inline
+#endif
+
 namespace bvh_detail {
 
 /// BVH_ASSERT's report: what was misused, where, then abort().
@@ -540,31 +548,19 @@ public:
     if (root_ < 0) return false;
     const Box box = bvh_detail::box_of(shape);
     if (!info_[root_].box.overlaps(box)) return false;
-    const float lo_x = bvh_detail::float_down(box.x0), lo_y = bvh_detail::float_down(box.y0);
-    const float hi_x = bvh_detail::float_up(box.x1), hi_y = bvh_detail::float_up(box.y1);
-    const float mid_x = 0.5f * (lo_x + hi_x), mid_y = 0.5f * (lo_y + hi_y);
-    const Probe probe(lo_x, lo_y, hi_x, hi_y, mid_x, mid_y);
-    bvh_detail::IndexStack stack;
-    int n = root_;
-    for (;;) {
+    const Probe probe = Probe::around(box);
+    // Children holding the probe's centre first: a hit there is likely.
+    return !walk(root_, [&](int n) -> unsigned {
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
         for (const T &s : info_[n].shapes)
-          if (intersect(s, shape)) return true;
-      } else {
-        unsigned hits, near;
-        child_masks(node, probe, hits, near);
-        const unsigned far = hits & ~near;
-        if (far & 4u) stack.push(node.child[2]);
-        if (far & 2u) stack.push(node.child[1]);
-        if (far & 1u) stack.push(node.child[0]);
-        if (near & 4u) stack.push(node.child[2]);
-        if (near & 2u) stack.push(node.child[1]);
-        if (near & 1u) stack.push(node.child[0]);
+          if (intersect(s, shape)) return kStop;
+        return 0;
       }
-      if (stack.empty()) return false;
-      n = stack.pop();
-    }
+      unsigned hits, near;
+      child_masks(node, probe, hits, near);
+      return hits | near << kFirst; // near is a subset of hits
+    });
   }
 
   /// Removes the shape at `pos` and returns the iterator to the shape that
@@ -906,6 +902,12 @@ private:
   }
 
   struct Probe { // a query box rounded outwards to float, and its centre
+    /// The probe of `box`.
+    static Probe around(const Box &box) {
+      const float lo_x = bvh_detail::float_down(box.x0), lo_y = bvh_detail::float_down(box.y0);
+      const float hi_x = bvh_detail::float_up(box.x1), hi_y = bvh_detail::float_up(box.y1);
+      return Probe(lo_x, lo_y, hi_x, hi_y, 0.5f * (lo_x + hi_x), 0.5f * (lo_y + hi_y));
+    }
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
     // Broadcast to 4 lanes once per query, not once per node.
     Probe(float lx, float ly, float hx, float hy, float mx, float my)
@@ -1020,19 +1022,18 @@ private:
   /// returns false.
   template <class V> void visit_overlapping(const Box &box, V &&visit) const {
     if (root_ < 0 || !info_[root_].box.overlaps(box)) return;
-    bvh_detail::IndexStack stack;
-    stack.push(root_);
-    while (!stack.empty()) {
-      const int n = stack.pop();
+    const Probe probe = Probe::around(box);
+    walk(root_, [&](int n) -> unsigned {
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
         for (const T &s : info_[n].shapes)
-          if (bvh_detail::box_of(s).overlaps(box) && !visit(s)) return;
-        continue;
+          if (bvh_detail::box_of(s).overlaps(box) && !visit(s)) return kStop;
+        return 0;
       }
-      for (int c = node.num_children - 1; c >= 0; --c)
-        if (info_[node.child[c]].box.overlaps(box)) stack.push(node.child[c]);
-    }
+      unsigned hits, near;
+      child_masks(node, probe, hits, near);
+      return hits;
+    });
   }
 
   /// Best-first search for the shape of least `shape_key`, where
@@ -1101,10 +1102,9 @@ private:
   bool find_equal(const T &value, int &leaf, std::size_t &index) const {
     const Box box = bvh_detail::box_of(value);
     if (root_ < 0 || !info_[root_].box.contains(box)) return false;
-    bvh_detail::IndexStack stack;
-    stack.push(root_);
-    while (!stack.empty()) {
-      const int n = stack.pop();
+    // A float child box is its exact box rounded outwards: it holds `box`
+    // whenever the exact one does.
+    return !walk(root_, [&](int n) -> unsigned {
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
         const std::vector<T> &v = info_[n].shapes;
@@ -1112,14 +1112,17 @@ private:
           if (v[i] == value) {
             leaf = n;
             index = i;
-            return true;
+            return kStop;
           }
-        continue;
+        return 0;
       }
+      unsigned enter = 0;
       for (int c = 0; c < node.num_children; ++c)
-        if (info_[node.child[c]].box.contains(box)) stack.push(node.child[c]);
-    }
-    return false;
+        enter |= unsigned(node.lo_x[c] <= box.x0 && node.lo_y[c] <= box.y0 && box.x1 <= node.hi_x[c] &&
+                          box.y1 <= node.hi_y[c])
+                 << c;
+      return enter;
+    });
   }
 
   /// Removes shape `index` of leaf `leaf`, then mends the tree:
@@ -1221,16 +1224,12 @@ private:
   void rebuild(int at, bool keep_order = false) {
     std::vector<T> shapes;
     shapes.reserve(info_[at].count);
-    bvh_detail::IndexStack stack;
-    stack.push(at);
-    while (!stack.empty()) {
-      const int n = stack.pop();
-      const Node node = nodes_[n];
-      if (node.num_children == 0)
-        for (T &s : info_[n].shapes) shapes.push_back(std::move(s));
-      for (int c = node.num_children - 1; c >= 0; --c) stack.push(node.child[c]);
+    // (free_node leaves a node's children in place, so the walk goes on.)
+    walk(at, [&](int n) -> unsigned {
+      for (T &s : info_[n].shapes) shapes.push_back(std::move(s));
       if (n != at) free_node(n);
-    }
+      return all_children(n);
+    });
     nodes_[at].num_children = 0;
     info_[at].shapes.clear();
     if (keep_order)
@@ -1528,13 +1527,43 @@ private:
   /// Calls f(node index) on every node in pre-order (children left to right).
   template <class F> void for_each_preorder(F &&f) const {
     if (root_ < 0) return;
-    bvh_detail::IndexStack stack;
-    stack.push(root_);
-    while (!stack.empty()) {
-      const int n = stack.pop();
+    walk(root_, [&](int n) -> unsigned {
       f(n);
+      return all_children(n);
+    });
+  }
+
+  /// walk()'s visit result: bit c enters child c (c < num_children); bit
+  /// kFirst + c enters it before every child of the low bits; kStop ends
+  /// the walk.
+  static constexpr unsigned kFirst = 4u, kStop = 1u << 8;
+  /// walk()'s visit result that enters every child of node n.
+  unsigned all_children(int n) const { return (1u << nodes_[n].num_children) - 1; }
+
+  /// The one traversal that collision, query, find_equal, rebuild and
+  /// for_each_preorder share: depth-first from node `from`, each node
+  /// visited before its children. visit(n) returns which children of n to
+  /// enter (none for a leaf) or kStop; within each group children are
+  /// entered left to right. Returns false when a visit stopped it.
+  template <class Visit> BVH_ALWAYS_INLINE bool walk(int from, Visit &&visit) const {
+    bvh_detail::IndexStack stack;
+    int n = from;
+    for (;;) {
+      const unsigned enter = visit(n);
+      if (enter & kStop) return false;
       const Node &node = nodes_[n];
-      for (int c = node.num_children - 1; c >= 0; --c) stack.push(node.child[c]);
+      if (node.num_children != 0) {
+        const unsigned first = enter >> kFirst, later = enter & ~first & 7u;
+        // Unrolled: this is collision()'s inner loop.
+        if (later & 4u) stack.push(node.child[2]);
+        if (later & 2u) stack.push(node.child[1]);
+        if (later & 1u) stack.push(node.child[0]);
+        if (first & 4u) stack.push(node.child[2]);
+        if (first & 2u) stack.push(node.child[1]);
+        if (first & 1u) stack.push(node.child[0]);
+      }
+      if (stack.empty()) return true;
+      n = stack.pop();
     }
   }
 
