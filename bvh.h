@@ -29,18 +29,24 @@
 #define BVH_BVH_H
 
 #include <algorithm>
+#include <array>
+#include <atomic>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <iostream>
 #include <iterator>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <queue>
 #include <string>
+#include <system_error>
+#include <thread>
 #include <type_traits>
 #include <utility>
 #include <vector>
@@ -168,6 +174,11 @@ public:
   }
   /// Makes room in the block table only: blocks come one at a time.
   void reserve(std::size_t n) { blocks_.reserve((n + kMask) >> kShift); }
+  /// Grows to n elements (n >= size()), the new ones default-constructed.
+  void resize(std::size_t n) {
+    reserve(n);
+    while (size_ < n) emplace_back();
+  }
   /// Appends a default-constructed element.
   void emplace_back() {
     if (size_ == blocks_.size() << kShift) blocks_.emplace_back(new X[kBlock]());
@@ -294,6 +305,87 @@ inline void append_box(std::string &out, const Box &b) {
   out += buf;
 }
 
+/// Node counts of a tree cut in thirds by count, as the course's rule and
+/// build_in_order cut: its shape depends on the counts alone, so the number
+/// of nodes under every node is known before anything is sorted. At each
+/// depth the splitting sizes differ by at most one, so every level of the
+/// table holds at most a few sizes.
+class Layout {
+public:
+  /// The table for n shapes at depth 0 (depth_limit <= 0: none).
+  Layout(std::size_t n, int split_threshold, int depth_limit)
+      : split_threshold_(std::size_t(split_threshold)), depth_limit_(depth_limit) {
+    levels_.push_back({Entry{n, 0}});
+    for (int d = 0; !levels_[std::size_t(d)].empty(); ++d) { // sizes met, top-down
+      std::vector<Entry> next;
+      for (const Entry &e : levels_[std::size_t(d)])
+        if (splits(e.size, d))
+          for (std::size_t g : thirds(e.size))
+            if (g != 0 && std::none_of(next.begin(), next.end(), [&](const Entry &x) { return x.size == g; }))
+              next.push_back(Entry{g, 0});
+      levels_.push_back(std::move(next));
+    }
+    for (std::size_t d = levels_.size(); d-- > 0;) // node counts, bottom-up
+      for (Entry &e : levels_[d]) {
+        e.nodes = 1;
+        if (splits(e.size, int(d)))
+          for (std::size_t g : thirds(e.size))
+            if (g != 0) e.nodes += nodes(g, int(d) + 1);
+      }
+  }
+  /// Nodes in the subtree of `size` shapes at `depth` (a size the build meets).
+  std::size_t nodes(std::size_t size, int depth) const {
+    for (const Entry &e : levels_[std::size_t(depth)])
+      if (e.size == size) return e.nodes;
+    return 0;
+  }
+
+private:
+  struct Entry {
+    std::size_t size, nodes;
+  };
+  bool splits(std::size_t m, int depth) const {
+    return m > split_threshold_ && (depth_limit_ <= 0 || depth < depth_limit_);
+  }
+  static std::array<std::size_t, 3> thirds(std::size_t m) {
+    const std::size_t base = m / 3, extra = m % 3;
+    return {base + (extra > 0), base + (extra > 1), base};
+  }
+  std::size_t split_threshold_;
+  int depth_limit_;
+  std::vector<std::vector<Entry>> levels_;
+};
+
+/// Calls f(0) ... f(count - 1), spread over `threads` threads (the caller
+/// is one of them). If a thread cannot be started, the others do its share;
+/// the first exception thrown by f is rethrown once all have finished.
+template <class F> void parallel_for(std::size_t count, unsigned threads, F &&f) {
+  std::atomic<std::size_t> next{0};
+  std::exception_ptr error;
+  std::mutex error_lock;
+  auto work = [&] {
+    for (std::size_t i; (i = next++) < count;) {
+      try {
+        f(i);
+      } catch (...) {
+        std::lock_guard<std::mutex> hold(error_lock);
+        if (!error) error = std::current_exception();
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (unsigned k = 1; k < threads && k < count; ++k) {
+    try {
+      pool.emplace_back(work);
+    } catch (const std::system_error &) {
+      break;
+    }
+  }
+  work();
+  for (std::thread &t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+}
+
 /// Working memory reused from one build to the next. Copies of a tree do
 /// not copy it: it holds nothing between calls.
 template <class X> struct Scratch {
@@ -352,7 +444,7 @@ public:
   BVH(BVH &&other) noexcept
       : nodes_(std::move(other.nodes_)), info_(std::move(other.info_)), free_(std::move(other.free_)),
         root_(other.root_), size_(other.size_), split_threshold_(other.split_threshold_),
-        depth_limit_(other.depth_limit_), build_rule_(other.build_rule_) {
+        depth_limit_(other.depth_limit_), build_rule_(other.build_rule_), build_threads_(other.build_threads_) {
     other.clear();
   }
   /// Takes `other`'s shapes and parameters; `other` is left empty.
@@ -366,6 +458,7 @@ public:
       split_threshold_ = other.split_threshold_;
       depth_limit_ = other.depth_limit_;
       build_rule_ = other.build_rule_;
+      build_threads_ = other.build_threads_;
       other.clear();
     }
     return *this;
@@ -494,14 +587,58 @@ public:
   void construct(const std::vector<T> &elements) {
     clear();
     if (elements.empty()) return;
-    // About 4.5 n / (k + 1) nodes come out of a build: reserve them once.
-    const std::size_t expected = elements.size() * 9 / (2 * std::size_t(split_threshold_) + 2) + 16;
-    nodes_.reserve(expected);
-    info_.reserve(expected);
-    root_ = new_node(0, -1, 0);
     size_ = elements.size();
-    build(root_, elements);
+    if (build_rule_ == BuildRule::sah) {
+      root_ = new_node(0, -1, 0);
+      build(root_, elements);
+      return;
+    }
+    // The course rule's tree shape depends on counts alone, so every node
+    // gets its index in advance (bvh_detail::Layout): in pre-order, each
+    // node's children adjacent, each subtree contiguous; and subtrees far
+    // enough down are independent, so threads can build them at once.
+    try {
+      const bvh_detail::Layout layout(size_, split_threshold_, depth_limit_);
+      const std::size_t total = layout.nodes(size_, 0);
+      nodes_.resize(total);
+      info_.resize(total);
+      root_ = 0;
+      reset_node(root_, 0, -1, 0);
+      CourseRule rule(fill_items(elements));
+      using Task = BuildTask<typename CourseRule::State>;
+      std::vector<Task> tasks{{root_, 0, size_, 1, CourseRule::root_state()}};
+      const unsigned threads = build_threads();
+      if (threads <= 1 || size_ < kParallelMin) {
+        build_top_down(tasks, rule, &layout);
+        return;
+      }
+      int defer_depth = 1; // enough subtrees to keep every thread busy
+      for (std::size_t subtrees = 3; subtrees < 4 * std::size_t(threads); subtrees *= 3) ++defer_depth;
+      std::vector<Task> deferred;
+      build_top_down(tasks, rule, &layout, defer_depth, &deferred);
+      bvh_detail::parallel_for(deferred.size(), threads, [&](std::size_t i) {
+        std::vector<Task> one{deferred[i]};
+        build_top_down(one, rule, &layout);
+      });
+    } catch (...) {
+      clear();
+      throw;
+    }
   }
+
+  /// Threads construct() may use: 0 (the default) for
+  /// std::thread::hardware_concurrency(), 1 for none besides the caller.
+  /// The tree built is the same whatever the number; scenes under
+  /// kParallelMin shapes are always built by the caller alone.
+  void set_build_threads(unsigned threads) { build_threads_ = threads; }
+  /// The threads construct() uses for large scenes (at least 1).
+  unsigned build_threads() const {
+    if (build_threads_ != 0) return build_threads_;
+    const unsigned hw = std::thread::hardware_concurrency();
+    return hw == 0 ? 1 : hw;
+  }
+  /// Scenes smaller than this are built without threads.
+  static constexpr std::size_t kParallelMin = std::size_t(1) << 16;
 
   /// Adds one shape: descend by least area growth (choose_child), add it to
   /// that leaf, split the leaf by the build rule when it holds more than
@@ -877,6 +1014,12 @@ private:
       nodes_.emplace_back();
       info_.emplace_back();
     }
+    reset_node(n, depth, parent, slot);
+    return n;
+  }
+
+  /// Node n as a fresh leaf at `depth`, child `slot` of `parent`.
+  void reset_node(int n, int depth, int parent, int slot) {
     nodes_[n] = Node();
     Info &in = info_[n];
     in.box = Box();
@@ -885,7 +1028,6 @@ private:
     in.slot = slot;
     in.count = 0;
     in.shapes.clear();
-    return n;
   }
 
   void free_node(int n) {
@@ -1176,113 +1318,167 @@ private:
     if (scapegoat >= 0) rebuild(scapegoat, true);
   }
 
-  /// Builds at leaf `at` from `shapes` keeping their order: a node over
-  /// split_threshold (above depth_limit) takes 3 consecutive groups whose
-  /// sizes differ by at most one, as the build rule cuts, but without
-  /// sorting. Used where leaf order must survive (erase); shapes that come
-  /// out of a subtree in leaf order are already spatially grouped.
-  void build_in_order(int at, std::vector<T> &shapes) {
-    struct Range {
-      int node;
-      std::size_t begin, end;
-    };
-    std::vector<Range> tasks{{at, 0, shapes.size()}};
-    while (!tasks.empty()) {
-      const Range t = tasks.back();
-      tasks.pop_back();
-      Info &in = info_[t.node];
-      Box box;
-      for (std::size_t i = t.begin; i < t.end; ++i) box.extend(bvh_detail::box_of(shapes[i]));
-      const std::size_t n = t.end - t.begin;
-      in.box = box;
-      in.count = n;
-      if (in.parent >= 0) set_child_box(in.parent, in.slot, box);
-      const int depth = in.depth;
-      if (n <= std::size_t(split_threshold_) || !may_split_at(depth)) {
-        in.shapes.assign(std::make_move_iterator(shapes.begin() + long(t.begin)),
-                         std::make_move_iterator(shapes.begin() + long(t.end)));
-        nodes_[t.node].num_children = 0;
-        continue;
+  // ---- Building: one top-down loop that every build rule plugs into -------
+  //
+  // construct(), a leaf's split, and the partial rebuilds of insert and
+  // erase all run build_top_down(). Per node it computes the box and count
+  // of the node's items and makes a leaf when the course says so (at most
+  // split_threshold items, or at depth_limit); otherwise the rule cuts the
+  // items into 3 consecutive groups and each non-empty group becomes a
+  // child, children built left to right. A rule supplies only its items,
+  // box(i), make_leaf(task, shapes) and cut(task, box, cut, child_state):
+  // CourseRule (the course's), SahRule (binned SAH) and InOrderRule (thirds
+  // in the given order, for erase).
+
+  /// True when T stores its centre (getCenter() returns a reference, as
+  /// Disk's does): items then read it from the shape instead of caching a
+  /// copy, 48 bytes instead of 64 for a disk, which the selections move.
+  static constexpr bool kCenterStored = std::is_reference<decltype(std::declval<const T &>().getCenter())>::value;
+  struct CachedCenter { // a triangle's or quad's centre is a sum: computed once
+    bvh_detail::XY center;
+    T shape;
+    std::uint32_t index; // input position: the last tie-break
+    const bvh_detail::XY &centre() const { return center; }
+  };
+  struct StoredCenter {
+    T shape;
+    std::uint32_t index;
+    decltype(auto) centre() const { return shape.getCenter(); }
+  };
+  /// One shape during a course build.
+  using Item = typename std::conditional<kCenterStored, StoredCenter, CachedCenter>::type;
+  static Item make_item(const T &shape, std::uint32_t index) {
+    if constexpr (kCenterStored)
+      return Item{shape, index};
+    else
+      return Item{bvh_detail::XY::of(shape.getCenter()), shape, index};
+  }
+  struct Key { // the order of one node: see CourseRule
+    int axis;       // 0: x, 1: y
+    bool other_too; // compare the other axis before the input position
+  };
+  /// Key's order with the axis and the chain fixed at compile time: the
+  /// selections spend most of a build in this comparison, and a runtime
+  /// axis costs a branch per coordinate read.
+  template <int Axis, bool OtherToo> struct Order {
+    bool operator()(const Item &a, const Item &b) const {
+      const auto &p = a.centre();
+      const auto &q = b.centre();
+      const double pa = Axis == 0 ? p.x : p.y, qa = Axis == 0 ? q.x : q.y;
+      if (pa != qa) return pa < qa;
+      if (OtherToo) {
+        const double po = Axis == 0 ? p.y : p.x, qo = Axis == 0 ? q.y : q.x;
+        if (po != qo) return po < qo;
       }
-      const std::size_t base = n / 3, extra = n % 3;
-      std::size_t cut[4];
-      cut[0] = t.begin;
-      for (int g = 0; g < 3; ++g) cut[g + 1] = cut[g] + base + (std::size_t(g) < extra ? 1 : 0);
-      int children = 0;
-      for (int g = 0; g < 3; ++g) {
-        if (cut[g + 1] == cut[g]) continue;
-        const int child = new_node(depth + 1, t.node, children);
-        nodes_[t.node].child[children++] = child;
-        tasks.push_back({child, cut[g], cut[g + 1]});
-      }
-      nodes_[t.node].num_children = children;
+      return a.index < b.index;
+    }
+  };
+  /// Calls f(Order<...>()) for `key`.
+  template <class F> static void with_order(const Key &key, F &&f) {
+    if (key.axis == 0) {
+      if (key.other_too) f(Order<0, true>());
+      else f(Order<0, false>());
+    } else {
+      if (key.other_too) f(Order<1, true>());
+      else f(Order<1, false>());
     }
   }
 
-  /// Rebuilds the subtree at `at` from its own shapes, taken in leaf order:
-  /// by the build rule, or with `keep_order` by build_in_order.
-  void rebuild(int at, bool keep_order = false) {
-    std::vector<T> shapes;
-    shapes.reserve(info_[at].count);
-    // (free_node leaves a node's children in place, so the walk goes on.)
-    walk(at, [&](int n) -> unsigned {
-      for (T &s : info_[n].shapes) shapes.push_back(std::move(s));
-      if (n != at) free_node(n);
-      return all_children(n);
-    });
-    nodes_[at].num_children = 0;
-    info_[at].shapes.clear();
-    if (keep_order)
-      build_in_order(at, shapes);
-    else
-      build(at, shapes);
+  /// One node to build: its items [begin, end) in the rule's array, the
+  /// rule's state for it, and `block`: with a precomputed layout
+  /// (construct), the index where its children go; -1 when nodes come from
+  /// new_node().
+  template <class State> struct BuildTask {
+    int node;
+    std::size_t begin, end;
+    int block;
+    State state;
+  };
+
+  /// The course's cut of [begin, end): 3 consecutive groups whose sizes
+  /// differ by at most one, larger first (empty ones when fewer than 3).
+  static void cut_in_thirds(std::size_t begin, std::size_t end, std::size_t cut[4]) {
+    const std::size_t n = end - begin, base = n / 3, extra = n % 3;
+    cut[0] = begin;
+    for (int g = 0; g < 3; ++g) cut[g + 1] = cut[g] + base + (std::size_t(g) < extra ? 1 : 0);
   }
 
-  /// Builds at leaf `at` from `shapes` by the rule in use.
-  void build(int at, const std::vector<T> &shapes) {
-    if (build_rule_ == BuildRule::sah)
-      build_subtree_sah(at, shapes);
-    else
-      build_subtree(at, shapes);
-  }
+  /// The build rule (the course's, which its expected output follows). A
+  /// node's shapes are ordered by their centre on the longer side of its box
+  /// (x when dx >= dy), ties kept in their current order, and cut in thirds
+  /// (cut_in_thirds); a leaf keeps its shapes in its parent's order.
+  ///
+  /// Doing this with a stable sort at every node costs O(n log^2 n). The
+  /// same groups come from selection (nth_element) if the comparison is a
+  /// strict total order equal to the stable one. The stable order at a node
+  /// compares centres on its axis, then on its parent's axis, its
+  /// grandparent's, ..., then the input position; with only two axes, every
+  /// repeat of an axis in that chain compares coordinates already found
+  /// equal, so the chain shrinks to (this axis, the other axis if any
+  /// ancestor used it, input position). Selection gives O(n log n) overall.
+  /// Each shape travels with its centre and input position (Item), so the
+  /// selections, box scans and the final copy into the leaves stream through
+  /// memory instead of chasing indices.
+  class CourseRule {
+  public:
+    struct State {
+      unsigned axes_used; // bit 0: x, bit 1: y, by the node's ancestors
+      Key parent_key;     // the order the node's shapes arrive in
+      bool has_parent_key;
+    };
+    explicit CourseRule(std::vector<Item> &items) : items_(items) {}
+    Box box(std::size_t i) const { return bvh_detail::box_of(items_[i].shape); }
+    void make_leaf(const BuildTask<State> &t, std::vector<T> &leaf) {
+      // Selection left the range unordered; restore the parent's order.
+      const auto first = items_.begin() + long(t.begin), last = items_.begin() + long(t.end);
+      if (t.state.has_parent_key)
+        with_order(t.state.parent_key, [&](auto order) { std::sort(first, last, order); });
+      else
+        std::sort(first, last, [](const Item &a, const Item &b) { return a.index < b.index; });
+      leaf.clear();
+      // Exactly its shapes: reserving k + 1 for later inserts costs more
+      // memory than the reallocations it saves.
+      leaf.reserve(t.end - t.begin);
+      for (auto it = first; it != last; ++it) leaf.push_back(it->shape);
+    }
+    void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State child[3]) {
+      const int axis = box.dx() >= box.dy() ? 0 : 1;
+      const Key key{axis, (t.state.axes_used & (2u >> axis)) != 0};
+      cut_in_thirds(t.begin, t.end, cut);
+      const auto first = items_.begin();
+      with_order(key, [&](auto order) {
+        std::nth_element(first + long(cut[0]), first + long(cut[1]), first + long(cut[3]), order);
+        std::nth_element(first + long(cut[1]), first + long(cut[2]), first + long(cut[3]), order);
+      });
+      for (int g = 0; g < 3; ++g) child[g] = State{t.state.axes_used | (1u << axis), key, true};
+    }
+    static State root_state() { return State{0u, Key{0, false}, false}; }
 
-  /// The alternative build rule, binned SAH for a ternary tree. A node is a
-  /// leaf exactly when the course's rule makes one (n <= split_threshold or
-  /// at depth_limit). Otherwise the shapes' centres are binned into
-  /// kSahBins slots along each axis, and the node is cut at the two bin
-  /// boundaries, on the axis, that minimise the surface area heuristic
-  /// sum over the 3 groups of (box area x shape count), the quantity the
-  /// statistics print; every group must be non-empty. When the centres fill
-  /// fewer than 3 bins on both axes (clusters, duplicates), it falls back
-  /// to the course's cut into thirds by count on the longer side.
+  private:
+    std::vector<Item> &items_;
+  };
+
+  /// The alternative build rule, binned SAH for a ternary tree. Leaves are
+  /// where the course's rule makes them. Otherwise the shapes' centres are
+  /// binned into kSahBins slots along each axis, and the node is cut at the
+  /// two bin boundaries, on the axis, that minimise the surface area
+  /// heuristic sum over the 3 groups of (box area x shape count), the
+  /// quantity the statistics print; every group must be non-empty. When the
+  /// centres fill fewer than 3 bins on both axes (clusters, duplicates), it
+  /// falls back to the course's cut into thirds by count on the longer side.
   /// O(n) per level plus O(kSahBins^2) per node: O(n log n) for a balanced
   /// result.
-  void build_subtree_sah(int at, const std::vector<T> &shapes) {
-    struct Range {
-      int node;
-      std::size_t begin, end;
-    };
-    std::vector<T> v(shapes);
-    std::vector<Range> tasks{{at, 0, v.size()}};
-    while (!tasks.empty()) {
-      const Range t = tasks.back();
-      tasks.pop_back();
-      Info &in = info_[t.node];
-      Box box, centres;
-      for (std::size_t i = t.begin; i < t.end; ++i) {
-        box.extend(bvh_detail::box_of(v[i]));
-        centres.extend(Box::at(v[i].getCenter()));
-      }
-      const std::size_t n = t.end - t.begin;
-      in.box = box;
-      in.count = n;
-      if (in.parent >= 0) set_child_box(in.parent, in.slot, box);
-      const int depth = in.depth;
-      if (n <= std::size_t(split_threshold_) || !may_split_at(depth)) {
-        in.shapes.assign(v.begin() + long(t.begin), v.begin() + long(t.end));
-        nodes_[t.node].num_children = 0;
-        continue;
-      }
+  class SahRule {
+  public:
+    struct State {};
+    explicit SahRule(std::vector<T> &shapes) : v_(shapes) {}
+    Box box(std::size_t i) const { return bvh_detail::box_of(v_[i]); }
+    void make_leaf(const BuildTask<State> &t, std::vector<T> &leaf) {
+      leaf.assign(std::make_move_iterator(v_.begin() + long(t.begin)), std::make_move_iterator(v_.begin() + long(t.end)));
+    }
+    void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State *) {
+      Box centres;
+      for (std::size_t i = t.begin; i < t.end; ++i) centres.extend(Box::at(v_[i].getCenter()));
       // Best (axis, first cut, second cut) over both axes.
       double best_cost = std::numeric_limits<double>::infinity();
       int best_axis = -1, best_i = 0, best_j = 0;
@@ -1293,9 +1489,8 @@ private:
         Box bin_box[kSahBins];
         std::size_t bin_count[kSahBins] = {};
         for (std::size_t i = t.begin; i < t.end; ++i) {
-          const double c = axis ? v[i].getCenter().y : v[i].getCenter().x;
-          const int b = std::min(kSahBins - 1, int(double(kSahBins) * (c - lo) / extent));
-          bin_box[b].extend(bvh_detail::box_of(v[i]));
+          const int b = bin_of(v_[i], axis, lo, extent);
+          bin_box[b].extend(bvh_detail::box_of(v_[i]));
           ++bin_count[b];
         }
         // Groups: bins [0, i), [i, j), [j, kSahBins).
@@ -1330,199 +1525,166 @@ private:
           }
         }
       }
-      std::size_t cut[4] = {t.begin, 0, 0, t.end};
+      const auto first = v_.begin() + long(t.begin), last = v_.begin() + long(t.end);
       if (best_axis >= 0) {
-        // The chosen axis's bins, as computed above.
         const double lo = best_axis ? centres.y0 : centres.x0;
         const double extent = (best_axis ? centres.y1 : centres.x1) - lo;
-        auto bin_of = [&](const T &s) {
-          const double c = best_axis ? s.getCenter().y : s.getCenter().x;
-          return std::min(kSahBins - 1, int(double(kSahBins) * (c - lo) / extent));
-        };
-        const auto first = v.begin() + long(t.begin), last = v.begin() + long(t.end);
-        const auto mid1 = std::partition(first, last, [&](const T &s) { return bin_of(s) < best_i; });
-        const auto mid2 = std::partition(mid1, last, [&](const T &s) { return bin_of(s) < best_j; });
-        cut[1] = std::size_t(mid1 - v.begin());
-        cut[2] = std::size_t(mid2 - v.begin());
+        const auto mid1 = std::partition(first, last, [&](const T &s) { return bin_of(s, best_axis, lo, extent) < best_i; });
+        const auto mid2 = std::partition(mid1, last, [&](const T &s) { return bin_of(s, best_axis, lo, extent) < best_j; });
+        cut[0] = t.begin;
+        cut[1] = std::size_t(mid1 - v_.begin());
+        cut[2] = std::size_t(mid2 - v_.begin());
+        cut[3] = t.end;
       } else {
         // Fallback: thirds by count along the longer side of the box.
         const int axis = box.dx() >= box.dy() ? 0 : 1;
-        const std::size_t base = n / 3, extra = n % 3;
-        cut[1] = t.begin + base + (extra > 0 ? 1 : 0);
-        cut[2] = cut[1] + base + (extra > 1 ? 1 : 0);
+        cut_in_thirds(t.begin, t.end, cut);
         auto less = [axis](const T &a, const T &b) {
           return axis ? a.getCenter().y < b.getCenter().y : a.getCenter().x < b.getCenter().x;
         };
-        std::nth_element(v.begin() + long(cut[0]), v.begin() + long(cut[1]), v.begin() + long(cut[3]), less);
-        std::nth_element(v.begin() + long(cut[1]), v.begin() + long(cut[2]), v.begin() + long(cut[3]), less);
+        std::nth_element(first, v_.begin() + long(cut[1]), last, less);
+        std::nth_element(v_.begin() + long(cut[1]), v_.begin() + long(cut[2]), last, less);
       }
-      int children = 0;
-      for (int g = 0; g < 3; ++g) {
-        if (cut[g + 1] == cut[g]) continue;
-        const int child = new_node(depth + 1, t.node, children);
-        nodes_[t.node].child[children++] = child;
-        tasks.push_back({child, cut[g], cut[g + 1]});
-      }
-      nodes_[t.node].num_children = children;
     }
-  }
+    static State root_state() { return State{}; }
+
+  private:
+    static int bin_of(const T &s, int axis, double lo, double extent) {
+      const double c = axis ? s.getCenter().y : s.getCenter().x;
+      return std::min(kSahBins - 1, int(double(kSahBins) * (c - lo) / extent));
+    }
+    std::vector<T> &v_;
+  };
   /// Bins per axis of the SAH build.
   static constexpr int kSahBins = 16;
 
-  /// The build rule (the course's, which its expected output follows). A
-  /// node with n shapes is a leaf when n <= split_threshold or it is at
-  /// depth_limit. Otherwise its shapes are ordered by their centre on the
-  /// longer side of its box (x when dx >= dy), ties kept in their current
-  /// order, and cut into 3 consecutive groups whose sizes differ by at most
-  /// one, larger groups first; empty groups are dropped. A leaf keeps its
-  /// shapes in its parent's order.
-  ///
-  /// Doing this with a stable sort at every node costs O(n log^2 n). The
-  /// same groups come from selection (nth_element) if the comparison is a
-  /// strict total order equal to the stable one. The stable order at a node
-  /// compares centres on its axis, then on its parent's axis, its
-  /// grandparent's, ..., then the input position; with only two axes, every
-  /// repeat of an axis in that chain compares coordinates already found
-  /// equal, so the chain shrinks to (this axis, the other axis if any
-  /// ancestor used it, input position). Selection gives O(n log n) overall.
-  ///
-  /// Builds in place at leaf `at` (depth taken from it) from `shapes`,
-  /// whose order is the "input position" for ties.
-  void build_subtree(int at, const std::vector<T> &shapes) {
-    const std::size_t count = shapes.size();
-    // Each shape travels with its centre and input position, so the
-    // selections, box scans and the final copy into the leaves stream
-    // through memory instead of chasing indices (gathering the shapes by
-    // index at the leaves was a cache miss per shape: 18% of a 1M build).
-    std::vector<Item> &items = scratch_.value.items;
-    std::vector<Task> &tasks = scratch_.value.tasks;
-    // (clear and append, not resize: T need not be default-constructible)
-    items.clear();
-    items.reserve(count);
-    for (std::size_t i = 0; i < count; ++i) items.push_back(make_item(shapes[i], std::uint32_t(i)));
-    tasks.clear();
-    tasks.push_back({at, 0, count, 0u, Key{0, false}, false});
-    const auto first = items.begin();
+  /// Thirds in the order given, without sorting: where leaf order must
+  /// survive (erase). Shapes that come out of a subtree in leaf order are
+  /// already spatially grouped.
+  class InOrderRule {
+  public:
+    struct State {};
+    explicit InOrderRule(std::vector<T> &shapes) : v_(shapes) {}
+    Box box(std::size_t i) const { return bvh_detail::box_of(v_[i]); }
+    void make_leaf(const BuildTask<State> &t, std::vector<T> &leaf) {
+      leaf.assign(std::make_move_iterator(v_.begin() + long(t.begin)), std::make_move_iterator(v_.begin() + long(t.end)));
+    }
+    void cut(const BuildTask<State> &t, const Box &, std::size_t cut[4], State *) { cut_in_thirds(t.begin, t.end, cut); }
+    static State root_state() { return State{}; }
+
+  private:
+    std::vector<T> &v_;
+  };
+
+  /// The shared loop: builds every task of `tasks` (and what they spawn) by
+  /// `rule`. Tasks whose node is at depth `defer_depth` are not built but
+  /// moved to `*deferred` (construct's parallel part builds them).
+  template <class Rule>
+  void build_top_down(std::vector<BuildTask<typename Rule::State>> &tasks, Rule &rule, const bvh_detail::Layout *layout,
+                      int defer_depth = -1, std::vector<BuildTask<typename Rule::State>> *deferred = nullptr) {
+    using Task = BuildTask<typename Rule::State>;
     while (!tasks.empty()) {
       const Task t = tasks.back();
       tasks.pop_back();
-      Box node_box;
-      for (std::size_t i = t.begin; i < t.end; ++i) node_box.extend(bvh_detail::box_of(items[i].shape));
-      const std::size_t n = t.end - t.begin;
       Info &in = info_[t.node];
-      in.box = node_box;
-      in.count = n;
-      if (in.parent >= 0) set_child_box(in.parent, in.slot, node_box);
       const int depth = in.depth;
+      if (deferred && depth == defer_depth) {
+        deferred->push_back(t);
+        continue;
+      }
+      Box box;
+      for (std::size_t i = t.begin; i < t.end; ++i) box.extend(rule.box(i));
+      const std::size_t n = t.end - t.begin;
+      in.box = box;
+      in.count = n;
+      if (in.parent >= 0) set_child_box(in.parent, in.slot, box);
       if (n <= std::size_t(split_threshold_) || !may_split_at(depth)) {
-        // Selection left the range unordered; restore the parent's order.
-        if (t.has_parent_key)
-          with_order(t.parent_key, [&](auto order) { std::sort(first + long(t.begin), first + long(t.end), order); });
-        else
-          std::sort(first + long(t.begin), first + long(t.end),
-                    [](const Item &a, const Item &b) { return a.index < b.index; });
-        std::vector<T> &leaf = in.shapes;
-        leaf.clear();
-        // Exactly its shapes: reserving k + 1 for later inserts cost W2
-        // 19 MB (+27%) of peak memory to save 4.6% of its instructions.
-        leaf.reserve(n);
-        for (std::size_t i = t.begin; i < t.end; ++i) leaf.push_back(items[i].shape);
+        rule.make_leaf(t, in.shapes);
         nodes_[t.node].num_children = 0;
         continue;
       }
-      const int axis = node_box.dx() >= node_box.dy() ? 0 : 1;
-      const Key key{axis, (t.axes_used & (2u >> axis)) != 0};
-      const std::size_t base = n / 3, extra = n % 3;
       std::size_t cut[4];
-      cut[0] = t.begin;
-      for (int g = 0; g < 3; ++g) cut[g + 1] = cut[g] + base + (std::size_t(g) < extra ? 1 : 0);
-      with_order(key, [&](auto order) {
-        std::nth_element(first + long(cut[0]), first + long(cut[1]), first + long(cut[3]), order);
-        std::nth_element(first + long(cut[1]), first + long(cut[2]), first + long(cut[3]), order);
-      });
+      typename Rule::State state[3];
+      rule.cut(t, box, cut, state);
+      Task child[3];
       int children = 0;
-      int child_index[3];
+      const int groups = (cut[1] > cut[0]) + (cut[2] > cut[1]) + (cut[3] > cut[2]);
+      int grandchildren = t.block + groups; // laid out: where the next child's children go
       for (int g = 0; g < 3; ++g) {
         if (cut[g + 1] == cut[g]) continue;
-        child_index[children] = new_node(depth + 1, t.node, children);
-        nodes_[t.node].child[children] = child_index[children];
-        ++children;
+        int c, block = -1;
+        if (layout) {
+          c = t.block + children;
+          reset_node(c, depth + 1, t.node, children);
+          block = grandchildren;
+          grandchildren += int(layout->nodes(cut[g + 1] - cut[g], depth + 1)) - 1;
+        } else {
+          c = new_node(depth + 1, t.node, children);
+        }
+        nodes_[t.node].child[children] = c;
+        child[children++] = Task{c, cut[g], cut[g + 1], block, state[g]};
       }
       nodes_[t.node].num_children = children;
-      // Push in reverse so children are built left to right.
-      int pushed = children;
-      for (int g = 2; g >= 0; --g) {
-        if (cut[g + 1] == cut[g]) continue;
-        --pushed;
-        tasks.push_back({child_index[pushed], cut[g], cut[g + 1], t.axes_used | (1u << axis), key, true});
-      }
+      for (int c = children - 1; c >= 0; --c) tasks.push_back(child[c]); // built left to right
     }
   }
 
-  /// True when T stores its centre (getCenter() returns a reference, as
-  /// Disk's does): items then read it from the shape instead of caching a
-  /// copy, 48 bytes instead of 64 for a disk, which the selections move.
-  static constexpr bool kCenterStored = std::is_reference<decltype(std::declval<const T &>().getCenter())>::value;
-  struct CachedCenter { // a triangle's or quad's centre is a sum: computed once
-    bvh_detail::XY center;
-    T shape;
-    std::uint32_t index; // input position: the last tie-break
-    const bvh_detail::XY &centre() const { return center; }
-  };
-  struct StoredCenter {
-    T shape;
-    std::uint32_t index;
-    decltype(auto) centre() const { return shape.getCenter(); }
-  };
-  /// One shape during a build.
-  using Item = typename std::conditional<kCenterStored, StoredCenter, CachedCenter>::type;
-  static Item make_item(const T &shape, std::uint32_t index) {
-    if constexpr (kCenterStored)
-      return Item{shape, index};
-    else
-      return Item{bvh_detail::XY::of(shape.getCenter()), shape, index};
-  }
-  struct Key { // the order of one node: see build_subtree
-    int axis;       // 0: x, 1: y
-    bool other_too; // compare the other axis before the input position
-  };
-  /// Key's order with the axis and the chain fixed at compile time: the
-  /// selections spend most of a build in this comparison, and a runtime
-  /// axis costs a branch per coordinate read.
-  template <int Axis, bool OtherToo> struct Order {
-    bool operator()(const Item &a, const Item &b) const {
-      const auto &p = a.centre();
-      const auto &q = b.centre();
-      const double pa = Axis == 0 ? p.x : p.y, qa = Axis == 0 ? q.x : q.y;
-      if (pa != qa) return pa < qa;
-      if (OtherToo) {
-        const double po = Axis == 0 ? p.y : p.x, qo = Axis == 0 ? q.y : q.x;
-        if (po != qo) return po < qo;
-      }
-      return a.index < b.index;
+  /// Builds at leaf `at` from `shapes` by the rule in use (a split or a
+  /// partial rebuild: nodes from new_node()).
+  void build(int at, const std::vector<T> &shapes) {
+    if (build_rule_ == BuildRule::sah) {
+      std::vector<T> v(shapes);
+      SahRule rule(v);
+      std::vector<BuildTask<typename SahRule::State>> tasks{{at, 0, v.size(), -1, SahRule::root_state()}};
+      build_top_down(tasks, rule, nullptr);
+      return;
     }
-  };
-  /// Calls f(Order<...>()) for `key`.
-  template <class F> static void with_order(const Key &key, F &&f) {
-    if (key.axis == 0) {
-      if (key.other_too) f(Order<0, true>());
-      else f(Order<0, false>());
-    } else {
-      if (key.other_too) f(Order<1, true>());
-      else f(Order<1, false>());
-    }
+    CourseRule rule(fill_items(shapes));
+    std::vector<BuildTask<typename CourseRule::State>> &tasks = scratch_.value.tasks;
+    tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule::root_state()});
+    build_top_down(tasks, rule, nullptr);
   }
-  struct Task {
-    int node;
-    std::size_t begin, end;
-    unsigned axes_used; // bit 0: x, bit 1: y, by the node's ancestors
-    Key parent_key;     // the order the node's shapes arrive in
-    bool has_parent_key;
-  };
+
+  /// Builds at leaf `at` from `shapes`, keeping their order (InOrderRule).
+  void build_in_order(int at, std::vector<T> &shapes) {
+    InOrderRule rule(shapes);
+    std::vector<BuildTask<typename InOrderRule::State>> tasks{{at, 0, shapes.size(), -1, InOrderRule::root_state()}};
+    build_top_down(tasks, rule, nullptr);
+  }
+
+  /// The reused item array, filled from `shapes` (input position = index).
+  std::vector<Item> &fill_items(const std::vector<T> &shapes) {
+    std::vector<Item> &items = scratch_.value.items;
+    // (clear and append, not resize: T need not be default-constructible)
+    items.clear();
+    items.reserve(shapes.size());
+    for (std::size_t i = 0; i < shapes.size(); ++i) items.push_back(make_item(shapes[i], std::uint32_t(i)));
+    return items;
+  }
+
   struct BuildScratch {
     std::vector<Item> items;
-    std::vector<Task> tasks;
+    std::vector<BuildTask<typename CourseRule::State>> tasks;
   };
+
+  /// Rebuilds the subtree at `at` from its own shapes, taken in leaf order:
+  /// by the build rule, or with `keep_order` by build_in_order.
+  void rebuild(int at, bool keep_order = false) {
+    std::vector<T> shapes;
+    shapes.reserve(info_[at].count);
+    // (free_node leaves a node's children in place, so the walk goes on.)
+    walk(at, [&](int n) -> unsigned {
+      for (T &s : info_[n].shapes) shapes.push_back(std::move(s));
+      if (n != at) free_node(n);
+      return all_children(n);
+    });
+    nodes_[at].num_children = 0;
+    info_[at].shapes.clear();
+    if (keep_order)
+      build_in_order(at, shapes);
+    else
+      build(at, shapes);
+  }
 
   /// Calls f(node index) on every node in pre-order (children left to right).
   template <class F> void for_each_preorder(F &&f) const {
@@ -1602,6 +1764,7 @@ private:
   int split_threshold_;
   int depth_limit_;
   BuildRule build_rule_ = BuildRule::course;
+  unsigned build_threads_ = 0; // 0: hardware concurrency
   bvh_detail::Scratch<BuildScratch> scratch_;
 };
 

@@ -115,6 +115,16 @@ else
   bad bvh_assert_build "see $LOGS/asserts_build.log"
 fi
 
+# construct()'s threads under ThreadSanitizer (data races fail the run).
+if echo 'int main(){}' | "$CXX" -x c++ -fsanitize=thread - -o "$BUILD/tsan-probe" >/dev/null 2>&1; then
+  rm -f "$BUILD/tsan-probe"
+  run_case parallel_build_under_thread_sanitizer bash -c "
+    '$CXX' -std=c++17 -O1 -g -fsanitize=thread -I. -Itests tests/test_bvh.cpp -o '$BUILD/test_bvh_tsan' &&
+    BVH_TEST_SCALE=0.25 '$BUILD/test_bvh_tsan' parallel_build_is_the_sequential_build"
+else
+  skip parallel_build_under_thread_sanitizer "$CXX cannot build with -fsanitize=thread"
+fi
+
 # ---------------------------------------------------------------------------
 # 3. Golden stdout: tests/golden.list on the course's data and on inputs/.
 golden_folder() { # label data-folder
