@@ -386,6 +386,174 @@ template <class F> void parallel_for(std::size_t count, unsigned threads, F &&f)
   if (error) std::rethrow_exception(error);
 }
 
+/// The leaves' shapes: each leaf owns one slot, a contiguous run of shapes.
+/// Slot capacities are powers of two, with one pool per capacity (a
+/// "class"); a pool stores its slots in fixed blocks, so growing never moves
+/// what is stored and there is no allocation per leaf; a bulk build's
+/// leaves of one class lie side by side in leaf order. Only a slot's first
+/// size() elements are constructed, so T needs no default constructor.
+/// Slots given back are reused first. Copies are deep.
+template <class T> class LeafPool {
+public:
+  /// A slot: its class (capacity 1 << cls) and its index in that class.
+  struct Slot {
+    std::uint32_t index = 0;
+    std::uint32_t cls = 0;
+  };
+
+  /// An empty slot for at least `capacity` (>= 1) shapes.
+  Slot allocate(std::size_t capacity) {
+    std::uint32_t cls = 0;
+    while ((std::size_t(1) << cls) < capacity) ++cls;
+    while (classes_.size() <= cls) classes_.emplace_back(std::uint32_t(classes_.size()));
+    return Slot{classes_[cls].allocate(), cls};
+  }
+  /// Destroys the slot's shapes and gives the slot back.
+  void release(Slot s) { classes_[s.cls].release(s.index); }
+
+  /// The slot's first shape.
+  T *data(Slot s) { return classes_[s.cls].data(s.index); }
+  const T *data(Slot s) const { return classes_[s.cls].data(s.index); }
+  /// The number of shapes in the slot.
+  std::size_t size(Slot s) const { return classes_[s.cls].sizes[s.index]; }
+
+  /// Appends a shape; a full slot first moves to one twice as large (`s`
+  /// then names the new slot).
+  template <class V> void push_back(Slot &s, V &&shape) {
+    if (size(s) == (std::size_t(1) << s.cls)) {
+      const Slot bigger = allocate(std::size_t(2) << s.cls);
+      T *from = data(s);
+      for (std::size_t i = 0, n = size(s); i < n; ++i) classes_[bigger.cls].construct(bigger.index, std::move(from[i]));
+      release(s);
+      s = bigger;
+    }
+    classes_[s.cls].construct(s.index, std::forward<V>(shape));
+  }
+  /// Removes shape i, keeping the order of the others.
+  void erase(Slot s, std::size_t i) {
+    T *d = data(s);
+    const std::size_t n = size(s);
+    std::move(d + i + 1, d + n, d + i);
+    d[n - 1].~T();
+    --classes_[s.cls].sizes[s.index];
+  }
+  /// Bytes held (blocks and tables), for reports.
+  std::size_t bytes() const {
+    std::size_t b = 0;
+    for (const Class &c : classes_) b += c.bytes();
+    return b;
+  }
+
+private:
+  static constexpr std::size_t kBlockBytes = 32768;
+
+  /// The slots of one capacity.
+  class Class {
+  public:
+    explicit Class(std::uint32_t cls) : cls_(cls), capacity_(std::size_t(1) << cls) {
+      // Slots per block: a power of two, so that finding a slot shifts.
+      while ((std::size_t(2) << block_shift_) * capacity_ * sizeof(T) <= kBlockBytes) ++block_shift_;
+      per_block_ = std::size_t(1) << block_shift_;
+    }
+    Class(const Class &o)
+        : cls_(o.cls_), capacity_(o.capacity_), block_shift_(o.block_shift_), per_block_(o.per_block_),
+          free_slots(o.free_slots) {
+      sizes.reserve(o.sizes.size());
+      try {
+        for (std::uint32_t i = 0; i < o.sizes.size(); ++i) {
+          if (i % per_block_ == 0) blocks_.push_back(std::allocator<T>().allocate(per_block_ * capacity_));
+          sizes.push_back(0);
+          for (std::uint32_t j = 0; j < o.sizes[i]; ++j) construct(i, o.data(i)[j]);
+        }
+      } catch (...) {
+        destroy();
+        throw;
+      }
+    }
+    Class(Class &&o) noexcept
+        : cls_(o.cls_), capacity_(o.capacity_), block_shift_(o.block_shift_), per_block_(o.per_block_),
+          sizes(std::move(o.sizes)), free_slots(std::move(o.free_slots)),
+          blocks_(std::move(o.blocks_)) {
+      o.sizes.clear();
+      o.free_slots.clear();
+      o.blocks_.clear();
+    }
+    Class &operator=(Class o) noexcept { // copy or move, then swap
+      std::swap(cls_, o.cls_);
+      std::swap(capacity_, o.capacity_);
+      std::swap(block_shift_, o.block_shift_);
+      std::swap(per_block_, o.per_block_);
+      sizes.swap(o.sizes);
+      free_slots.swap(o.free_slots);
+      blocks_.swap(o.blocks_);
+      return *this;
+    }
+    ~Class() { destroy(); }
+
+    std::uint32_t allocate() {
+      if (!free_slots.empty()) {
+        const std::uint32_t i = free_slots.back();
+        free_slots.pop_back();
+        return i;
+      }
+      const std::uint32_t i = std::uint32_t(sizes.size());
+      if (i % per_block_ == 0) blocks_.push_back(std::allocator<T>().allocate(per_block_ * capacity_));
+      sizes.push_back(0);
+      return i;
+    }
+    void release(std::uint32_t i) {
+      T *d = data(i);
+      for (std::uint32_t j = 0; j < sizes[i]; ++j) d[j].~T();
+      sizes[i] = 0;
+      free_slots.push_back(i);
+    }
+    template <class V> void construct(std::uint32_t i, V &&v) {
+      ::new (static_cast<void *>(data(i) + sizes[i])) T(std::forward<V>(v));
+      ++sizes[i];
+    }
+    T *data(std::uint32_t i) { return blocks_[i >> block_shift_] + (std::size_t(i & (per_block_ - 1)) << cls_); }
+    const T *data(std::uint32_t i) const {
+      return blocks_[i >> block_shift_] + (std::size_t(i & (per_block_ - 1)) << cls_);
+    }
+    std::size_t bytes() const {
+      return blocks_.size() * per_block_ * capacity_ * sizeof(T) + sizes.capacity() * 4 + free_slots.capacity() * 4;
+    }
+
+  private:
+    std::uint32_t cls_;
+    std::size_t capacity_;
+    std::uint32_t block_shift_ = 0;
+    std::size_t per_block_;
+
+  public:
+    std::vector<std::uint32_t> sizes; ///< shapes in each slot (0 when free)
+    std::vector<std::uint32_t> free_slots; ///< slots given back
+
+  private:
+    std::vector<T *> blocks_;
+    void destroy() {
+      for (std::uint32_t i = 0; i < sizes.size(); ++i)
+        for (std::uint32_t j = 0; j < sizes[i]; ++j) data(i)[j].~T();
+      for (T *b : blocks_) std::allocator<T>().deallocate(b, per_block_ * capacity_);
+      blocks_.clear();
+      sizes.clear();
+    }
+  };
+
+  std::vector<Class> classes_;
+};
+
+/// A view of n contiguous X: a leaf's shapes.
+template <class X> struct Span {
+  X *first;
+  std::size_t count;
+  X *begin() const { return first; }
+  X *end() const { return first + count; }
+  std::size_t size() const { return count; }
+  bool empty() const { return count == 0; }
+  X &operator[](std::size_t i) const { return first[i]; }
+};
+
 /// Working memory reused from one build to the next. Copies of a tree do
 /// not copy it: it holds nothing between calls.
 template <class X> struct Scratch {
@@ -443,6 +611,7 @@ public:
   /// Takes `other`'s shapes; `other` is left empty (same parameters).
   BVH(BVH &&other) noexcept
       : nodes_(std::move(other.nodes_)), info_(std::move(other.info_)), free_(std::move(other.free_)),
+        pool_(std::move(other.pool_)),
         root_(other.root_), size_(other.size_), split_threshold_(other.split_threshold_),
         depth_limit_(other.depth_limit_), build_rule_(other.build_rule_), build_threads_(other.build_threads_) {
     other.clear();
@@ -453,6 +622,7 @@ public:
       nodes_ = std::move(other.nodes_);
       info_ = std::move(other.info_);
       free_ = std::move(other.free_);
+      pool_ = std::move(other.pool_);
       root_ = other.root_;
       size_ = other.size_;
       split_threshold_ = other.split_threshold_;
@@ -482,7 +652,7 @@ public:
     /// The shape it points to (not end()).
     reference operator*() const {
       BVH_ASSERT(tree_ != nullptr && leaf_ >= 0, "dereferencing end() or a singular iterator");
-      return tree_->info_[leaf_].shapes[index_];
+      return tree_->shapes_of(leaf_)[index_];
     }
     /// Member access on the shape it points to.
     pointer operator->() const { return &**this; }
@@ -490,7 +660,7 @@ public:
     /// Next shape (end() after the last; not from end()).
     iterator &operator++() {
       BVH_ASSERT(tree_ != nullptr && leaf_ >= 0, "incrementing end() or a singular iterator");
-      if (++index_ == tree_->info_[leaf_].shapes.size()) {
+      if (++index_ == tree_->shapes_of(leaf_).size()) {
         leaf_ = tree_->next_leaf(leaf_);
         index_ = 0;
       }
@@ -502,13 +672,13 @@ public:
       if (leaf_ < 0) {
         BVH_ASSERT(tree_->root_ >= 0, "decrementing end() of an empty tree");
         leaf_ = tree_->rightmost_leaf(tree_->root_);
-        index_ = tree_->info_[leaf_].shapes.size() - 1;
+        index_ = tree_->shapes_of(leaf_).size() - 1;
       } else if (index_ > 0) {
         --index_;
       } else {
         leaf_ = tree_->prev_leaf(leaf_);
         BVH_ASSERT(leaf_ >= 0, "decrementing begin()");
-        index_ = tree_->info_[leaf_].shapes.size() - 1;
+        index_ = tree_->shapes_of(leaf_).size() - 1;
       }
       return *this;
     }
@@ -578,6 +748,7 @@ public:
     nodes_.clear();
     info_.clear();
     free_.clear();
+    pool_ = bvh_detail::LeafPool<T>();
     root_ = -1;
     size_ = 0;
   }
@@ -610,6 +781,7 @@ public:
       const unsigned threads = build_threads();
       if (threads <= 1 || size_ < kParallelMin) {
         build_top_down(tasks, rule, &layout);
+        gather_leaves(rule);
         return;
       }
       int defer_depth = 1; // enough subtrees to keep every thread busy
@@ -620,10 +792,25 @@ public:
         std::vector<Task> one{deferred[i]};
         build_top_down(one, rule, &layout);
       });
+      gather_leaves(rule);
     } catch (...) {
       clear();
       throw;
     }
+  }
+
+  /// construct()'s last step: the leaves, in pre-order, own consecutive
+  /// ranges of the rule's items; each takes its range into a pool slot.
+  /// Then the items' memory is given back.
+  template <class Rule> void gather_leaves(Rule &rule) {
+    std::size_t next = 0;
+    for_each_preorder([&](int n) {
+      if (nodes_[n].num_children != 0) return;
+      const std::size_t count = info_[n].count;
+      for (std::size_t i = next; i < next + count; ++i) leaf_push(n, std::move(rule.shape(i)), count);
+      next += count;
+    });
+    std::vector<Item>().swap(scratch_.value.items);
   }
 
   /// Threads construct() may use: 0 (the default) for
@@ -651,7 +838,7 @@ public:
       root_ = new_node(0, -1, 0);
       info_[root_].box = box;
       info_[root_].count = 1;
-      info_[root_].shapes.push_back(shape);
+      leaf_push(root_, shape);
       return;
     }
     bvh_detail::IndexStack path;
@@ -667,11 +854,10 @@ public:
       path.push(n);
       n = choose_child(n, box);
     }
-    Info &leaf = info_[n];
-    leaf.shapes.push_back(shape);
-    if (int(leaf.shapes.size()) > split_threshold_ && may_split_at(leaf.depth)) {
-      std::vector<T> shapes = std::move(leaf.shapes);
-      leaf.shapes.clear();
+    leaf_push(n, shape);
+    if (int(info_[n].count) > split_threshold_ && may_split_at(info_[n].depth)) {
+      std::vector<T> shapes;
+      take_shapes(n, shapes);
       build(n, shapes);
     }
     rebalance_path(path, n);
@@ -690,8 +876,9 @@ public:
     return !walk(root_, [&](int n) -> unsigned {
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
-        for (const T &s : info_[n].shapes)
-          if (intersect(s, shape)) return kStop;
+        const T *s = pool_.data(leaf_slot(node));
+        for (std::int32_t i = 0; i < node.child[2]; ++i)
+          if (intersect(s[i], shape)) return kStop;
         return 0;
       }
       unsigned hits, near;
@@ -710,7 +897,7 @@ public:
     BVH_ASSERT(pos.leaf_ >= 0, "erase(end())");
     // Catches most stale iterators (changes invalidate them), not all.
     BVH_ASSERT(std::size_t(pos.leaf_) < nodes_.size() && nodes_[pos.leaf_].num_children == 0 &&
-                   pos.index_ < info_[pos.leaf_].shapes.size(),
+                   pos.index_ < shapes_of(pos.leaf_).size(),
                "erase() with an invalidated iterator");
     const std::size_t rank = rank_of(pos);
     erase_at(pos.leaf_, pos.index_);
@@ -788,7 +975,7 @@ public:
       const Node &na = nodes_[a];
       if (a == b) {
         if (na.num_children == 0) {
-          const std::vector<T> &v = info_[a].shapes;
+          const bvh_detail::Span<const T> v = shapes_of(a);
           for (std::size_t i = 0; i < v.size(); ++i)
             for (std::size_t j = i + 1; j < v.size(); ++j)
               if (bvh_detail::box_of(v[i]).overlaps(bvh_detail::box_of(v[j])) && intersect(v[i], v[j]) &&
@@ -805,8 +992,8 @@ public:
       }
       const Node &nb = nodes_[b];
       if (na.num_children == 0 && nb.num_children == 0) {
-        for (const T &s : info_[a].shapes)
-          for (const T &u : info_[b].shapes)
+        for (const T &s : shapes_of(a))
+          for (const T &u : shapes_of(b))
             if (bvh_detail::box_of(s).overlaps(bvh_detail::box_of(u)) && intersect(s, u) && !keep_going(f, s, u))
               return;
         continue;
@@ -846,7 +1033,7 @@ public:
       ++node_count;
       max_depth = std::max(max_depth, in.depth);
       if (leaf)
-        leaf_area += area * double(in.shapes.size());
+        leaf_area += area * double(in.count);
       else
         inner_area += area;
       if (!print_tree) return;
@@ -861,7 +1048,7 @@ public:
       bvh_detail::append_box(line, in.box);
       if (leaf) {
         line += " elements:";
-        for (const T &s : in.shapes) {
+        for (const T &s : shapes_of(n)) {
           line += ' ';
           bvh_detail::append_box(line, bvh_detail::box_of(s));
         }
@@ -905,7 +1092,7 @@ public:
       if (in.parent >= 0) rgb[n] = in.parent == root_ ? primary[in.slot] : blend(rgb[in.parent], primary[in.slot]);
       const Color color(rgb[n].r, rgb[n].g, rgb[n].b);
       BoundingBox(Point(in.box.x0, in.box.y0), Point(in.box.x1, in.box.y1)).render(ostr, color);
-      for (T &s : in.shapes) s.setColor(color);
+      for (T &s : shapes_of(n)) s.setColor(color);
     });
   }
 
@@ -952,14 +1139,18 @@ public:
       }
       if (depth_limit_ != unlimited && in.depth > depth_limit_) ok = fail(n, "deeper than depth_limit");
       if (node.num_children == 0) {
-        if (in.shapes.empty()) ok = fail(n, "empty leaf");
-        if (int(in.shapes.size()) > split_threshold_ && may_split_at(in.depth))
+        const bvh_detail::Span<const T> shapes = shapes_of(n);
+        if (shapes.empty()) ok = fail(n, "empty leaf");
+        if (node.child[0] != std::int32_t(in.shapes.index) || node.child[1] != std::int32_t(in.shapes.cls) ||
+            node.child[2] != std::int32_t(shapes.size()))
+          ok = fail(n, "leaf's hot record disagrees with its slot");
+        if (int(shapes.size()) > split_threshold_ && may_split_at(in.depth))
           ok = fail(n, "leaf over split_threshold above depth_limit");
-        for (const T &s : in.shapes) tight.extend(bvh_detail::box_of(s));
-        count = in.shapes.size();
+        for (const T &s : shapes) tight.extend(bvh_detail::box_of(s));
+        count = shapes.size();
         counted += count;
       } else {
-        if (!in.shapes.empty()) ok = fail(n, "inner node holds shapes");
+        if (in.has_shapes) ok = fail(n, "inner node holds shapes");
         if (node.num_children < 2 || node.num_children > 3) ok = fail(n, "inner node without 2 or 3 children");
         if (node.num_children == 2 && split_threshold_ != 1)
           ok = fail(n, "2 children although split_threshold > 1");
@@ -990,17 +1181,68 @@ private:
 
   struct Node { // hot: all a query reads
     float lo_x[3], lo_y[3], hi_x[3], hi_y[3]; // children's boxes, rounded outwards
+    // Inner node: the children. Leaf: where its shapes are, copied from its
+    // Info by sync_leaf (slot index, slot class, shape count), so that a
+    // query reaches a leaf's shapes without reading the cold Info.
     std::int32_t child[3];
     std::int32_t num_children; // 0: leaf
   };
+  /// The pool slot of leaf `node` (sync_leaf keeps it).
+  static typename bvh_detail::LeafPool<T>::Slot leaf_slot(const Node &node) {
+    return {std::uint32_t(node.child[0]), std::uint32_t(node.child[1])};
+  }
   struct Info { // cold: exact geometry, links, shapes
     Box box;
     std::int32_t parent = -1; // -1 for the root
     std::int32_t slot = 0;    // index in the parent's child[]
     std::int32_t depth = 0;
     std::size_t count = 0;    // shapes in the subtree
-    std::vector<T> shapes;    // leaves only, in leaf order
+    typename bvh_detail::LeafPool<T>::Slot shapes; // leaves: their shapes, in leaf order
+    bool has_shapes = false;                       // shapes names a slot of pool_
   };
+
+  /// The shapes of node n (none for an inner node).
+  bvh_detail::Span<const T> shapes_of(int n) const {
+    const Info &in = info_[n];
+    if (!in.has_shapes) return {nullptr, 0};
+    return {pool_.data(in.shapes), pool_.size(in.shapes)};
+  }
+  bvh_detail::Span<T> shapes_of(int n) {
+    const Info &in = info_[n];
+    if (!in.has_shapes) return {nullptr, 0};
+    return {pool_.data(in.shapes), pool_.size(in.shapes)};
+  }
+  /// Appends a shape to leaf n (a slot for `room` shapes if it has none).
+  template <class V> void leaf_push(int n, V &&shape, std::size_t room = 1) {
+    Info &in = info_[n];
+    if (!in.has_shapes) {
+      in.shapes = pool_.allocate(room);
+      in.has_shapes = true;
+    }
+    pool_.push_back(in.shapes, std::forward<V>(shape));
+    sync_leaf(n);
+  }
+  /// Copies leaf n's slot and count into its hot Node.
+  void sync_leaf(int n) {
+    const Info &in = info_[n];
+    Node &node = nodes_[n];
+    node.child[0] = in.has_shapes ? std::int32_t(in.shapes.index) : 0;
+    node.child[1] = in.has_shapes ? std::int32_t(in.shapes.cls) : 0;
+    node.child[2] = in.has_shapes ? std::int32_t(pool_.size(in.shapes)) : 0;
+  }
+  /// Moves leaf n's shapes to the end of `out` and gives its slot back.
+  void take_shapes(int n, std::vector<T> &out) {
+    for (T &s : shapes_of(n)) out.push_back(std::move(s));
+    release_shapes(n);
+  }
+  void release_shapes(int n) {
+    Info &in = info_[n];
+    if (in.has_shapes) {
+      pool_.release(in.shapes);
+      in.has_shapes = false;
+      if (nodes_[n].num_children == 0) sync_leaf(n);
+    }
+  }
 
   bool may_split_at(int depth) const { return depth_limit_ == unlimited || depth < depth_limit_; }
 
@@ -1027,11 +1269,11 @@ private:
     in.parent = parent;
     in.slot = slot;
     in.count = 0;
-    in.shapes.clear();
+    release_shapes(n);
   }
 
   void free_node(int n) {
-    std::vector<T>().swap(info_[n].shapes);
+    release_shapes(n);
     free_.push_back(n);
   }
 
@@ -1168,7 +1410,7 @@ private:
     walk(root_, [&](int n) -> unsigned {
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
-        for (const T &s : info_[n].shapes)
+        for (const T &s : shapes_of(n))
           if (bvh_detail::box_of(s).overlaps(box) && !visit(s)) return kStop;
         return 0;
       }
@@ -1197,7 +1439,7 @@ private:
         if (best && key > best_key * (1 + 1e-12) + 1e-300) break;
         const Node &node = nodes_[n];
         if (node.num_children == 0) {
-          for (const T &s : info_[n].shapes) {
+          for (const T &s : shapes_of(n)) {
             const double k = shape_key(s);
             if (k < best_key) {
               best_key = k;
@@ -1249,7 +1491,7 @@ private:
     return !walk(root_, [&](int n) -> unsigned {
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
-        const std::vector<T> &v = info_[n].shapes;
+        const bvh_detail::Span<const T> v = shapes_of(n);
         for (std::size_t i = 0; i < v.size(); ++i)
           if (v[i] == value) {
             leaf = n;
@@ -1280,8 +1522,8 @@ private:
   /// iteration order survives an erase. A rebuild of m shapes costs O(m log
   /// m) and, as for inserts, needs Omega(m) erases below the node to recur.
   void erase_at(int leaf, std::size_t index) {
-    std::vector<T> &shapes = info_[leaf].shapes;
-    shapes.erase(shapes.begin() + long(index));
+    pool_.erase(info_[leaf].shapes, index);
+    sync_leaf(leaf);
     if (--size_ == 0) {
       clear();
       return;
@@ -1293,7 +1535,7 @@ private:
       --in.count;
       Box box;
       if (nodes_[n].num_children == 0)
-        for (const T &s : in.shapes) box.extend(bvh_detail::box_of(s));
+        for (const T &s : shapes_of(n)) box.extend(bvh_detail::box_of(s));
       else
         for (int c = 0; c < nodes_[n].num_children; ++c)
           if (info_[nodes_[n].child[c]].count != 0) box.extend(info_[nodes_[n].child[c]].box);
@@ -1302,7 +1544,7 @@ private:
       if (n != leaf) up.push_back(n);
     }
     // 2. Structure.
-    int mend = info_[leaf].shapes.empty() ? info_[leaf].parent : -1;
+    int mend = shapes_of(leaf).empty() ? info_[leaf].parent : -1;
     for (int a : up)
       if (info_[a].count <= std::size_t(split_threshold_)) mend = a;
     if (mend >= 0) rebuild(mend, true);
@@ -1326,7 +1568,8 @@ private:
   // split_threshold items, or at depth_limit); otherwise the rule cuts the
   // items into 3 consecutive groups and each non-empty group becomes a
   // child, children built left to right. A rule supplies only its items,
-  // box(i), make_leaf(task, shapes) and cut(task, box, cut, child_state):
+  // box(i), shape(i), order_leaf(task) (a leaf's shapes are then taken in
+  // item order) and cut(task, box, cut, child_state):
   // CourseRule (the course's), SahRule (binned SAH) and InOrderRule (thirds
   // in the given order, for erase).
 
@@ -1428,18 +1671,14 @@ private:
     };
     explicit CourseRule(std::vector<Item> &items) : items_(items) {}
     Box box(std::size_t i) const { return bvh_detail::box_of(items_[i].shape); }
-    void make_leaf(const BuildTask<State> &t, std::vector<T> &leaf) {
+    T &shape(std::size_t i) { return items_[i].shape; }
+    void order_leaf(const BuildTask<State> &t) {
       // Selection left the range unordered; restore the parent's order.
       const auto first = items_.begin() + long(t.begin), last = items_.begin() + long(t.end);
       if (t.state.has_parent_key)
         with_order(t.state.parent_key, [&](auto order) { std::sort(first, last, order); });
       else
         std::sort(first, last, [](const Item &a, const Item &b) { return a.index < b.index; });
-      leaf.clear();
-      // Exactly its shapes: reserving k + 1 for later inserts costs more
-      // memory than the reallocations it saves.
-      leaf.reserve(t.end - t.begin);
-      for (auto it = first; it != last; ++it) leaf.push_back(it->shape);
     }
     void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State child[3]) {
       const int axis = box.dx() >= box.dy() ? 0 : 1;
@@ -1473,9 +1712,8 @@ private:
     struct State {};
     explicit SahRule(std::vector<T> &shapes) : v_(shapes) {}
     Box box(std::size_t i) const { return bvh_detail::box_of(v_[i]); }
-    void make_leaf(const BuildTask<State> &t, std::vector<T> &leaf) {
-      leaf.assign(std::make_move_iterator(v_.begin() + long(t.begin)), std::make_move_iterator(v_.begin() + long(t.end)));
-    }
+    T &shape(std::size_t i) { return v_[i]; }
+    void order_leaf(const BuildTask<State> &) {}
     void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State *) {
       Box centres;
       for (std::size_t i = t.begin; i < t.end; ++i) centres.extend(Box::at(v_[i].getCenter()));
@@ -1566,9 +1804,8 @@ private:
     struct State {};
     explicit InOrderRule(std::vector<T> &shapes) : v_(shapes) {}
     Box box(std::size_t i) const { return bvh_detail::box_of(v_[i]); }
-    void make_leaf(const BuildTask<State> &t, std::vector<T> &leaf) {
-      leaf.assign(std::make_move_iterator(v_.begin() + long(t.begin)), std::make_move_iterator(v_.begin() + long(t.end)));
-    }
+    T &shape(std::size_t i) { return v_[i]; }
+    void order_leaf(const BuildTask<State> &) {}
     void cut(const BuildTask<State> &t, const Box &, std::size_t cut[4], State *) { cut_in_thirds(t.begin, t.end, cut); }
     static State root_state() { return State{}; }
 
@@ -1599,8 +1836,12 @@ private:
       in.count = n;
       if (in.parent >= 0) set_child_box(in.parent, in.slot, box);
       if (n <= std::size_t(split_threshold_) || !may_split_at(depth)) {
-        rule.make_leaf(t, in.shapes);
+        rule.order_leaf(t);
         nodes_[t.node].num_children = 0;
+        // A laid-out build (construct) gathers every leaf's shapes at the
+        // end, in one pass, with no thread touching the pool.
+        if (!layout)
+          for (std::size_t i = t.begin; i < t.end; ++i) leaf_push(t.node, std::move(rule.shape(i)), n);
         continue;
       }
       std::size_t cut[4];
@@ -1674,12 +1915,11 @@ private:
     shapes.reserve(info_[at].count);
     // (free_node leaves a node's children in place, so the walk goes on.)
     walk(at, [&](int n) -> unsigned {
-      for (T &s : info_[n].shapes) shapes.push_back(std::move(s));
+      take_shapes(n, shapes);
       if (n != at) free_node(n);
       return all_children(n);
     });
     nodes_[at].num_children = 0;
-    info_[at].shapes.clear();
     if (keep_order)
       build_in_order(at, shapes);
     else
@@ -1759,6 +1999,7 @@ private:
   bvh_detail::BlockVector<Node> nodes_;
   bvh_detail::BlockVector<Info> info_;
   std::vector<int> free_; // indices of unused nodes, reused first
+  bvh_detail::LeafPool<T> pool_; // every leaf's shapes
   int root_ = -1;
   std::size_t size_ = 0;
   int split_threshold_;

@@ -147,6 +147,154 @@ TEST(erase_churn_matches_model_triangles) { churn_against_model<Triangle>(base_s
 TEST(erase_churn_matches_model_quads) { churn_against_model<Quad>(base_seed() + 200); }
 TEST(erase_churn_matches_model_mixed) { churn_against_model<Shape>(base_seed() + 300); }
 
+// ---------------------------------------------------------------------------
+// the leaf pool
+
+/// A value with no default constructor that counts live copies: the pool
+/// constructs only what it holds and destroys each exactly once.
+struct Tracked {
+  static int live;
+  int v;
+  explicit Tracked(int v_) : v(v_) { ++live; }
+  Tracked(const Tracked &o) : v(o.v) { ++live; }
+  Tracked &operator=(const Tracked &o) = default;
+  ~Tracked() { --live; }
+};
+int Tracked::live = 0;
+
+TEST(leaf_pool_matches_a_model) {
+  const unsigned seed = base_seed() + 2100;
+  note("BVH_SEED=" + std::to_string(seed));
+  std::mt19937 rng(seed);
+  {
+    using Pool = bvh_detail::LeafPool<Tracked>;
+    Pool pool;
+    std::vector<Pool::Slot> slots;
+    std::vector<std::vector<int>> model;
+    auto same = [&](const Pool &p) {
+      for (std::size_t k = 0; k < slots.size(); ++k) {
+        if (p.size(slots[k]) != model[k].size()) return false;
+        for (std::size_t i = 0; i < model[k].size(); ++i)
+          if (p.data(slots[k])[i].v != model[k][i]) return false;
+      }
+      return true;
+    };
+    int next = 0;
+    for (int step = 0; step < scaled(20000); ++step) {
+      const unsigned op = unsigned(rng() % 10);
+      if (op < 2 || slots.empty()) { // a new slot, sometimes with room for many
+        slots.push_back(pool.allocate(1 + rng() % (rng() % 8 == 0 ? 3000 : 6)));
+        model.emplace_back();
+      } else if (op < 7) { // append; one slot in 16 gets runs that outgrow blocks
+        const std::size_t k = rng() % slots.size();
+        const int times = k % 16 == 0 ? 1 + int(rng() % 200) : 1;
+        for (int t = 0; t < times; ++t) {
+          pool.push_back(slots[k], Tracked(next));
+          model[k].push_back(next++);
+        }
+      } else if (op < 9) { // erase inside a slot, keeping order
+        const std::size_t k = rng() % slots.size();
+        if (!model[k].empty()) {
+          const std::size_t i = rng() % model[k].size();
+          pool.erase(slots[k], i);
+          model[k].erase(model[k].begin() + long(i));
+        }
+      } else { // give a slot back: the next one of its class reuses it
+        const std::size_t k = rng() % slots.size();
+        const Pool::Slot gone = slots[k];
+        pool.release(gone);
+        slots.erase(slots.begin() + long(k));
+        model.erase(model.begin() + long(k));
+        const Pool::Slot again = pool.allocate(std::size_t(1) << gone.cls);
+        CHECK(again.cls == gone.cls && again.index == gone.index);
+        slots.push_back(again);
+        model.emplace_back();
+      }
+      if (step % 997 == 0) { // copies (with the free slots) are deep and equal
+        Pool copy(pool);
+        CHECK(same(copy));
+        Pool assigned;
+        assigned = copy;
+        Pool moved(std::move(copy));
+        CHECK(same(assigned) && same(moved));
+      }
+    }
+    CHECK(same(pool));
+    std::size_t held = 0;
+    for (const std::vector<int> &m : model) held += m.size();
+    CHECK_EQ(std::size_t(Tracked::live), held);
+  }
+  CHECK_EQ(Tracked::live, 0);
+}
+
+TEST(depth_limited_leaves_grow_past_a_pool_block) {
+  // Depth limit 1: three leaves of ~2,000 disks each, far more than a pool
+  // block holds: slots move to ever larger classes as they fill.
+  Maker make(base_seed() + 2200);
+  const std::vector<Disk> disks = make.scene<Disk>(scaled(6000), 3);
+  BVH<Disk> tree(4, 1);
+  std::vector<Disk> model;
+  for (const Disk &d : disks) {
+    tree.insert(d);
+    model.push_back(d);
+    if (model.size() % 500 == 0) {
+      std::string why;
+      CHECK(tree.validate(&why));
+      CHECK(same_shapes(contents(tree), model));
+    }
+  }
+  for (int i = 0; i < 200; ++i) {
+    Disk probe;
+    make.make(probe, 20);
+    bool brute = false;
+    for (const Disk &k : model) brute = brute || model_intersect(k, probe);
+    CHECK_EQ(tree.collision(probe), brute);
+  }
+}
+
+TEST(copies_of_a_tree_whose_pool_has_holes) {
+  Maker make(base_seed() + 2300);
+  std::mt19937 &rng = make.rng;
+  for (int depth : {BVH<Disk>::unlimited, 2}) {
+    BVH<Disk> tree(3, depth);
+    std::vector<Disk> model = make.scene<Disk>(scaled(3000), 10);
+    tree.construct(model);
+    // Erase and insert at random: rebuilds and splits give slots back.
+    for (int step = 0; step < scaled(3000); ++step) {
+      if (rng() % 2 && !model.empty()) {
+        auto it = tree.begin();
+        std::advance(it, long(rng() % tree.size()));
+        model.erase(std::find(model.begin(), model.end(), *it));
+        tree.erase(it);
+      } else {
+        Disk d;
+        make.make(d, 10);
+        tree.insert(d);
+        model.push_back(d);
+      }
+    }
+    BVH<Disk> copy(tree);
+    BVH<Disk> assigned(1, 1);
+    assigned = tree;
+    std::string why;
+    CHECK(copy.validate(&why) && assigned.validate(&why));
+    CHECK(contents(copy) == contents(tree) && contents(assigned) == contents(tree));
+    // Changing the copy leaves the original.
+    const std::vector<Disk> before = contents(tree);
+    while (copy.size() > model.size() / 2) copy.erase(copy.begin());
+    for (int i = 0; i < 100; ++i) {
+      Disk d;
+      make.make(d, 10);
+      copy.insert(d);
+    }
+    CHECK(copy.validate(&why));
+    CHECK(contents(tree) == before);
+    BVH<Disk> moved(std::move(assigned));
+    CHECK(moved.validate(&why) && contents(moved) == before && assigned.empty());
+    CHECK(same_shapes(contents(tree), model));
+  }
+}
+
 TEST(erase_while_iterating_visits_each_shape_once) {
   const unsigned seed = base_seed() + 300;
   Maker make(seed);
