@@ -181,10 +181,13 @@ template <class T> Outcome discard_ours(const std::vector<T> &c, int depth_limit
   return o;
 }
 
-template <class T> Outcome bulk_ours(const std::vector<T> &base, const std::vector<T> &probes, int depth_limit) {
+/// `threads`: construct()'s build threads (0: its default, hardware concurrency).
+template <class T>
+Outcome bulk_ours(const std::vector<T> &base, const std::vector<T> &probes, int depth_limit, unsigned threads = 0) {
   Outcome o;
   Timer timer;
   BVH<T> tree(4, depth_limit);
+  tree.set_build_threads(threads);
   tree.construct(base);
   for (std::uint32_t i = 0; i < probes.size(); ++i)
     if (tree.collision(probes[i])) o.ids.push_back(i);
@@ -391,6 +394,7 @@ struct Method {
 std::vector<Method> all_methods() {
   return {
       {"ours", "ours BVH(4, unlimited)", true, ""},
+      {"ours-1t", "ours BVH(4), 1 build thread", true, ""}, // bulk workloads only
       {"ours-d8", "ours BVH(4, depth 8)", true, ""},
       {"brute", "brute force", true, ""},
       {"boost-quad16", "Boost rtree quadratic<16>", BENCH_HAVE_BOOST != 0,
@@ -423,6 +427,7 @@ template <class T> bool run_discard(const std::string &m, const std::vector<T> &
 
 template <class T> bool run_bulk(const std::string &m, const std::vector<T> &base, const std::vector<T> &probes, Outcome &o) {
   if (m == "ours") o = bulk_ours(base, probes, 0);
+  else if (m == "ours-1t") o = bulk_ours(base, probes, 0, 1);
   else if (m == "ours-d8") o = bulk_ours(base, probes, 8);
 #if BENCH_HAVE_BOOST
   else if (m == "boost-quad16") o = bulk_boost<bgi::quadratic<16>>(base, probes);
@@ -544,6 +549,7 @@ struct Options {
   std::string data = "build/bench-data";
   std::string out; // default: bench, or build/bench-quick with --quick
   double sorted_budget = 60; // seconds for the sorted-by-x insertion
+  long big = 0;              // --big: candidates of W1, W2 and W3 (0: 1M, or 100k with --quick)
 };
 
 struct SceneSpec {
@@ -669,6 +675,8 @@ void run_workload(const Options &opt, const Workload &w, const std::vector<T> &c
     } else if (m.name == "brute" && (w.bulk || long(cand.size()) > brute_limit(opt))) {
       if (w.sweep) continue; // the sweep just has no point there
       row.note = w.bulk ? "skipped: 1M x 100k scan" : "skipped: over " + count_label(brute_limit(opt)) + " candidates";
+    } else if (m.name == "ours-1t" && !w.bulk) {
+      continue; // only construct() uses threads
     } else if (m.name == "grid" && (w.bulk || !std::is_same<T, Disk>::value)) {
       continue; // the grid is a reference for disk discards only
     }
@@ -966,14 +974,16 @@ void write_svg_plot(const Report &rep, const std::vector<long> &ns, const std::v
 // ---------------------------------------------------------------------------
 
 void usage() {
-  std::cout << "usage: build/bench [--quick] [--runs N] [--only WORKLOAD] [--method NAME] [--in-process]\n"
+  std::cout << "usage: build/bench [--quick] [--runs N] [--only WORKLOAD] [--method NAME] [--in-process] [--big N]\n"
                "                   [--bvh PATH] [--data DIR] [--out DIR] [--sorted-budget SECONDS]\n"
                "  --quick           reduced sizes (1M -> 100k, 100k -> 20k), 3 runs each (under a minute)\n"
                "  --runs N          runs per (workload, method); the median is reported\n"
                "                    (default 5, 3 for the 1M workloads, 1 with --only)\n"
                "  --only WORKLOAD   one workload: W1 W2 W3 tri quad S1000 ... S1000000\n"
                "                    (implies --in-process; no files are written)\n"
-               "  --method NAME     one method: ours ours-d8 brute boost-quad16 boost-rstar16 box2d grid\n"
+               "  --method NAME     one method: ours ours-1t ours-d8 brute boost-quad16 boost-rstar16 box2d grid\n"
+               "  --big N           N candidates in W1, W2 and W3 instead of 1M (the 10M scaling point:\n"
+               "                    --big 10000000 --only W2 --method ours, then boost-quad16, grid)\n"
                "  --in-process      no fork per run (for valgrind/perf); peak RSS is then cumulative\n"
                "  --bvh PATH        the generator (default ./bvh.out)\n"
                "  --data DIR        cached scenes (default build/bench-data)\n"
@@ -998,6 +1008,7 @@ int main(int argc, char **argv) {
     else if (a == "--runs") opt.runs = std::max(1, std::atoi(value().c_str()));
     else if (a == "--only") opt.only = value();
     else if (a == "--method") opt.method = value();
+    else if (a == "--big") opt.big = std::atol(value().c_str());
     else if (a == "--in-process") opt.in_process = true;
     else if (a == "--bvh") opt.bvh = value();
     else if (a == "--data") opt.data = value();
@@ -1022,7 +1033,7 @@ int main(int argc, char **argv) {
 
   // Sizes. QUICK takes the same seeds with fewer shapes: with --overlap a
   // scene of n shapes is the first n lines of a larger one of the same seed.
-  const long n_big = opt.quick ? 100000 : 1000000;
+  const long n_big = opt.big > 0 ? opt.big : (opt.quick ? 100000 : 1000000);
   const long n_probe = opt.quick ? 10000 : 100000;
   const long n_poly = opt.quick ? 20000 : 100000;
   const int big_runs = 3;
