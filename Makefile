@@ -7,7 +7,7 @@ SANITIZE ?= -std=c++17 -O1 -g -Wall -Wextra -pedantic -fsanitize=address,undefin
 COURSE_DATA ?= ../shared/course
 BUILD ?= build
 
-HEADERS := bvh.h shapes.h intersect.h distance.h svg.h
+HEADERS := bvh.h shapes.h intersect.h distance.h svg.h scene.h
 TESTS := $(BUILD)/test_bvh $(BUILD)/test_intersect $(BUILD)/test_dynamic $(BUILD)/test_parse
 # test_bvh once more with collision()'s scalar fallback instead of SSE2.
 SCALAR_TESTS := $(BUILD)/test_bvh_scalar
@@ -21,14 +21,13 @@ all: bvh.out
 bvh.out: main.cpp $(HEADERS)
 	$(CXX) $(CXXFLAGS) main.cpp -o $@
 
-# (main.cpp too: test_parse includes it.)
-$(BUILD)/test_%: tests/test_%.cpp tests/check.h tests/scenes.h main.cpp $(HEADERS) | $(BUILD)
+$(BUILD)/test_%: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) $(CXXFLAGS) -I. -Itests $< -o $@
 
 $(BUILD)/test_bvh_scalar: tests/test_bvh.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) $(CXXFLAGS) -DBVH_NO_SIMD -I. -Itests $< -o $@
 
-$(BUILD)/test_%_san: tests/test_%.cpp tests/check.h tests/scenes.h main.cpp $(HEADERS) | $(BUILD)
+$(BUILD)/test_%_san: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) $(SANITIZE) -I. -Itests $< -o $@
 
 $(BUILD)/bvh_san.out: main.cpp $(HEADERS) | $(BUILD)
@@ -49,7 +48,7 @@ FUZZ_SECONDS ?= 60
 FUZZ_CXX ?= clang++
 $(BUILD)/fuzz_parser: tests/fuzz_parser.cpp main.cpp $(HEADERS) | $(BUILD)
 	$(FUZZ_CXX) -std=c++17 -O1 -g -Wall -Wextra -pedantic -fsanitize=fuzzer,address,undefined \
-	  -fno-sanitize-recover=all -I. $< -o $@
+	  -fno-sanitize-recover=all -DBVH_NO_MAIN -I. $< main.cpp -o $@
 
 fuzz: $(BUILD)/fuzz_parser
 	mkdir -p $(BUILD)/fuzz-work
@@ -86,7 +85,7 @@ $(BUILD)/bench-peers: bench-peers
 bench-peers:
 
 # The results name the bvh.h they measured (its sha1, and whether HEAD has it).
-$(BUILD)/bench: bench/bench.cpp main.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
+$(BUILD)/bench: bench/bench.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
 	@id=$$(sha1sum bvh.h | cut -c1-12); head=$$(git rev-parse --short HEAD 2>/dev/null || echo none); \
 	if [ "$$(git show HEAD:bvh.h 2>/dev/null | sha1sum | cut -c1-12)" = "$$id" ]; then st="as in HEAD $$head"; \
 	else st="modified since HEAD $$head"; fi; info="bvh.h sha1 $$id, $$st"; \
@@ -109,7 +108,7 @@ bench-dynamic: $(BUILD)/bench_dynamic
 # incremental insertion (random and sorted order) compared by SAH cost, height, build
 # time and probe time, on the course's scenes (COURSE_DATA) and on 10k-1M random
 # disks; writes bench/results_builders.txt and the chart bench/builders.svg.
-$(BUILD)/bench_builders: bench/builders.cpp main.cpp $(HEADERS) | $(BUILD)
+$(BUILD)/bench_builders: bench/builders.cpp $(HEADERS) | $(BUILD)
 	$(CXX) $(BENCH_CXXFLAGS) bench/builders.cpp -o $@
 
 bench-builders: $(BUILD)/bench_builders

@@ -73,7 +73,8 @@ for compiler in g++ clang++; do
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_intersect.cpp &&
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_dynamic.cpp &&
       $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. -Itests tests/test_parse.cpp &&
-      $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. tests/fuzz_parser.cpp"
+      $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. tests/fuzz_parser.cpp &&
+      $compiler -std=c++17 -Wall -Wextra -pedantic -Werror -fsyntax-only -I. scene.h"
   else
     skip "warnings_$compiler" "$compiler is not installed"
   fi

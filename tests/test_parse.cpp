@@ -1,22 +1,25 @@
-// tests/test_parse.cpp — the scene reader of main.cpp against references:
+// tests/test_parse.cpp — the scene reader (scene.h) against references:
 // its fast decimal path against std::from_chars on millions of random
 // numbers, mixed (.shapes) lines against the one-kind readers, and the
 // chunked file reader against the in-memory one at many chunk sizes.
 // Seeds are printed (BVH_SEED changes them; BVH_TEST_SCALE shrinks runs).
-#define BVH_NO_MAIN
-#include "../main.cpp"
-
 #include <unistd.h>
 
+#include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <random>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "check.h"
+#include "scene.h"
 #include "scenes.h"
 
 namespace {
+
+using namespace bvh_scene;
 
 std::string seed_note(const char *what, unsigned seed) {
   return std::string(what) + " BVH_SEED=" + std::to_string(seed) + " BVH_TEST_SCALE=" + std::to_string(scale());
