@@ -8,13 +8,24 @@ COURSE_DATA ?= ../shared/course
 BUILD ?= build
 
 HEADERS := bvh.h shapes.h intersect.h distance.h svg.h scene.h
-TESTS := $(BUILD)/test_bvh $(BUILD)/test_intersect $(BUILD)/test_dynamic $(BUILD)/test_parse
+# Parallel jobs of make test's build (and of tests/run.sh's layers).
+JOBS ?= $(shell nproc 2>/dev/null || echo 2)
+UNITS := bvh intersect dynamic parse
+TESTS := $(UNITS:%=$(BUILD)/test_%)
 # test_bvh once more with collision()'s scalar fallback instead of SSE2.
 SCALAR_TESTS := $(BUILD)/test_bvh_scalar
-SAN_TESTS := $(BUILD)/test_bvh_san $(BUILD)/test_intersect_san $(BUILD)/test_dynamic_san $(BUILD)/test_parse_san \
-  $(BUILD)/bvh_san.out
+SAN_TESTS := $(UNITS:%=$(BUILD)/test_%_san) $(BUILD)/bvh_san.out
+# Portable builds: every unit test under -std=c++20 (g++), and with clang++
+# and libc++ (as on macOS). -O1: these runs check the language and the
+# standard library, not speed, and -O1 compiles faster than -O2.
+PORTABLE_FLAGS ?= -O1 -Wall -Wextra -pedantic
+CLANG_CXX ?= clang++
+CXX20_TESTS := $(UNITS:%=$(BUILD)/test_%_cxx20)
+LIBCXX_TESTS := $(UNITS:%=$(BUILD)/test_%_libcxx)
+# examples/*.cpp: README.txt's library snippets as programs that check themselves.
+EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
-.PHONY: all test demo bench clean fuzz bench-dynamic bench-builders
+.PHONY: all test test-build test-build-gcc test-build-libcxx demo bench clean fuzz bench-dynamic bench-builders
 
 all: bvh.out
 
@@ -33,12 +44,28 @@ $(BUILD)/test_%_san: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | 
 $(BUILD)/bvh_san.out: main.cpp $(HEADERS) | $(BUILD)
 	$(CXX) $(SANITIZE) main.cpp -o $@
 
+$(BUILD)/test_%_cxx20: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+	$(CXX) -std=c++20 $(PORTABLE_FLAGS) -I. -Itests $< -o $@
+
+$(BUILD)/test_%_libcxx: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+	$(CLANG_CXX) -std=c++17 -stdlib=libc++ $(PORTABLE_FLAGS) -I. -Itests $< -o $@
+
+$(BUILD)/example_%: examples/%.cpp $(HEADERS) | $(BUILD)
+	$(CXX) $(CXXFLAGS) -I. $< -o $@
+
 $(BUILD):
 	mkdir -p $(BUILD)
 
-# Every test; ends with "N passed, M failed" and fails when M > 0.
-test: bvh.out $(TESTS) $(SAN_TESTS) $(SCALAR_TESTS)
-	CXX="$(CXX)" COURSE_DATA="$(COURSE_DATA)" BUILD="$(BUILD)" bash tests/run.sh
+# What make test compiles, by compiler (tests/run.sh builds the groups whose
+# compiler is installed, all at once with -j$(JOBS) -k, then runs the layers).
+test-build-gcc: bvh.out $(TESTS) $(SCALAR_TESTS) $(SAN_TESTS) $(CXX20_TESTS) $(EXAMPLES)
+test-build-libcxx: $(LIBCXX_TESTS)
+test-build: test-build-gcc test-build-libcxx $(BUILD)/fuzz_parser
+
+# Every test; ends with "N passed, M failed" and fails when M > 0. The
+# build runs with -j$(JOBS) and so do the independent layers of tests/run.sh.
+test: | $(BUILD)
+	+@MAKE="$(MAKE)" JOBS="$(JOBS)" CXX="$(CXX)" COURSE_DATA="$(COURSE_DATA)" BUILD="$(BUILD)" bash tests/run.sh
 
 # libFuzzer on the scene parser, the tree built from what it accepts and the
 # command-line parser (tests/fuzz_parser.cpp; needs clang++ and its libFuzzer

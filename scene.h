@@ -21,6 +21,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <memory>
@@ -56,6 +57,65 @@ static_assert(std::numeric_limits<float>::is_iec559 && FLT_EVAL_METHOD == 0,
 #else
 #define BVH_SCENE_COLD
 #endif
+
+/// std::from_chars into a float (chars_format::general) where the standard
+/// library has it; otherwise (libc++ before 17, as on macOS) the same forms
+/// are scanned here and converted by std::strtof, which is also correctly
+/// rounded (bvh.out never changes the "C" locale; a program that does must
+/// keep '.' as its decimal point). Same results, same errors: an overflow,
+/// or an underflow to 0, is result_out_of_range; subnormals are accepted.
+inline std::from_chars_result float_from_chars(const char *first, const char *last, float &value) {
+#if defined(__cpp_lib_to_chars) && __cpp_lib_to_chars >= 201611L
+  return std::from_chars(first, last, value);
+#else
+  const auto digit = [](char c) { return unsigned(c - '0') < 10; };
+  const char *p = first;
+  if (p < last && *p == '-') ++p;
+  // The rest of `word` (lower case) at p, in any case: its end, or nullptr.
+  const auto word = [&](const char *w) -> const char * {
+    const char *q = p;
+    for (; *w; ++w, ++q)
+      if (q == last || (*q | 0x20) != *w) return nullptr;
+    return q;
+  };
+  if (const char *q = word("inf")) {
+    p = q;
+    if (const char *r = word("inity")) p = r;
+  } else if (const char *n = word("nan")) {
+    p = n;
+    if (p < last && *p == '(') {
+      const char *r = p + 1;
+      while (r < last && (digit(*r) || ((*r | 0x20) >= 'a' && (*r | 0x20) <= 'z') || *r == '_')) ++r;
+      if (r < last && *r == ')') p = r + 1;
+    }
+  } else {
+    const char *start = p;
+    while (p < last && digit(*p)) ++p;
+    bool any = p > start;
+    if (p < last && *p == '.') {
+      const char *fraction = ++p;
+      while (p < last && digit(*p)) ++p;
+      any = any || p > fraction;
+    }
+    if (!any) return {first, std::errc::invalid_argument};
+    if (p < last && (*p == 'e' || *p == 'E')) {
+      const char *e = p + 1;
+      if (e < last && (*e == '+' || *e == '-')) ++e;
+      const char *exponent = e;
+      while (e < last && digit(*e)) ++e;
+      if (e > exponent) p = e;
+    }
+  }
+  const std::string text(first, p);
+  char *stop = nullptr;
+  errno = 0;
+  const float f = std::strtof(text.c_str(), &stop);
+  if (text.empty() || stop != text.c_str() + text.size()) return {first, std::errc::invalid_argument};
+  if (errno == ERANGE && (std::isinf(f) || f == 0)) return {p, std::errc::result_out_of_range};
+  value = f;
+  return {p, std::errc()};
+#endif
+}
 
 /// One line of a scene file (without its line end) and a cursor into it.
 /// Each reader skips the blanks (spaces, tabs) before its token. On a
@@ -235,7 +295,7 @@ private:
     const char *q = p_;
     // from_chars refuses a leading '+', which `>>` accepts ("+-3" stays an error).
     if (end_ - q >= 2 && q[0] == '+' && q[1] != '-') ++q;
-    const std::from_chars_result r = std::from_chars(q, end_, f);
+    const std::from_chars_result r = float_from_chars(q, end_, f);
     if (r.ec == std::errc::result_out_of_range) return fail((std::string(what) + " out of range: ").c_str(), error);
     if (r.ec != std::errc() || (r.ptr < end_ && !ends_token(*r.ptr)))
       return fail(("expected " + std::string(what) + ", found ").c_str(), error);
