@@ -161,6 +161,22 @@ portable() {
   fi
 }
 
+# examples/*.cpp (README's library snippets as programs): each checks its own
+# answers against a scan and ends with "ok"; README must still quote them.
+examples() {
+  local src name
+  for src in examples/*.cpp; do
+    name=$(basename "$src" .cpp)
+    run_case "example_$name" bash -c "'$BUILD/example_$name' > '$OUT/example_$name.txt' &&
+      cat '$OUT/example_$name.txt' && [ \"\$(tail -n 1 '$OUT/example_$name.txt')\" = ok ]"
+  done
+  if have python3; then
+    python3 tests/readme_quotes.py README.txt examples/*.cpp
+  else
+    bad python3_available "python3 is missing: apt-get install python3"
+  fi
+}
+
 # Golden stdout: tests/golden.list on the course's data and on inputs/.
 golden_folder() { # label data-folder
   local label=$1 data=$2
@@ -251,13 +267,14 @@ golden() {
 # The golden files agree with an independent model of the handout's rules
 # (tests/verify_golden.py: Python, stable sorts, exact rational geometry).
 python_model() {
-  if have python3; then
-    [ -f "$COURSE_DATA/36.triangles" ] && run_case golden_course_agrees_with_python_model \
-      python3 tests/verify_golden.py course "$COURSE_DATA"
-    run_case golden_inputs_agrees_with_python_model python3 tests/verify_golden.py inputs inputs
-  else
+  if ! have python3; then
     bad python3_available "python3 is missing: apt-get install python3"
+  elif [ -f "$COURSE_DATA/36.triangles" ]; then
+    run_case golden_course_agrees_with_python_model python3 tests/verify_golden.py course "$COURSE_DATA"
+  else
+    skip golden_course_agrees_with_python_model "no course data at COURSE_DATA=$COURSE_DATA"
   fi
+  have python3 && run_case golden_inputs_agrees_with_python_model python3 tests/verify_golden.py inputs inputs
 }
 
 # A real browser: headless Chromium renders 36_triangles_2 (tests/browser.sh).
@@ -312,6 +329,20 @@ valgrind_layer() {
   run_case valgrind_generate "${VG[@]}" ./bvh.out --generate triangles 300 --seed 3 -o "$OUT/vg.triangles"
   run_case valgrind_mixed_scene "${VG[@]}" ./bvh.out -i inputs/overlap_1000.shapes -o "$OUT/vg_mixed.html" \
     --depth_limit 6 --incremental --discard_overlap --visualize --print_tree --pairs
+}
+
+# The CMake package: install + find_package, and add_subdirectory (tests/cmake_consumer.sh).
+cmake_package() {
+  bash tests/cmake_consumer.sh "$OUT/cmake" >"$LOGS/cmake_consumer.log" 2>&1
+  local status name rest
+  while read -r status name rest; do
+    case $status in
+      ok) ok "$name" ;;
+      FAIL) bad "$name" "$rest" ;;
+      skip) skip "cmake_*" "$name $rest" ;;
+    esac
+  done <"$LOGS/cmake_consumer.log"
+  grep -qE '^(ok|FAIL|skip) ' "$LOGS/cmake_consumer.log" || bad cmake_consumer "printed nothing: see $LOGS/cmake_consumer.log"
 }
 
 # libFuzzer for FUZZ_SECONDS on the parser, the tree and the command line
@@ -371,11 +402,13 @@ build_start=$SECONDS
 layer fuzz fuzz
 layer valgrind valgrind_layer
 layer sanitizers sanitizers
+layer cmake cmake_package
 layer golden golden
 layer python_model python_model
 layer unit unit_tests
 layer portable portable
 layer cli_errors cli_errors
+layer examples examples
 layer browser browser
 finish_layers
 
