@@ -13,11 +13,16 @@
 // Exit status: 0 on success, 1 when the input file is wrong (FILE:LINE:
 // message on stderr), 2 for a wrong command line. No output file is left
 // behind on any error.
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cfloat>
 #include <charconv>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -26,9 +31,11 @@
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <new>
 #include <string>
 #include <system_error>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -40,9 +47,9 @@
 namespace {
 
 const char *const kUsage =
-    "usage: bvh.out -i SCENE -o PICTURE.html [--split_threshold K] [--depth_limit D]\n"
-    "               [--incremental [--discard_overlap]] [--visualize] [--print_tree] [--pairs]\n"
-    "               [--build course|sah]\n"
+    "usage: bvh.out -i SCENE (-o PICTURE.html | --no_output) [--split_threshold K]\n"
+    "               [--depth_limit D] [--incremental [--discard_overlap]] [--visualize]\n"
+    "               [--print_tree] [--pairs] [--build course|sah]\n"
     "       bvh.out --generate disks|triangles|quads|shapes COUNT -o SCENE [--seed S]\n"
     "               [--size MIN:MAX] [--overlap]\n"
     "       bvh.out --help\n";
@@ -54,6 +61,8 @@ const char *const kHelp =
     "\n"
     "  -i, --input SCENE        the shapes, one per line; the suffix gives their kind\n"
     "  -o, --output FILE        the picture (.html or .svg); with --generate, the scene\n"
+    "  --no_output              instead of -o: build and print as usual, write no picture\n"
+    "                           (a 2M-shape scene's picture is 250 MB no browser opens)\n"
     "  --split_threshold K      split a node holding more than K shapes (K >= 1, default 4)\n"
     "  --depth_limit D          never split below depth D (the root is depth 0); without it,\n"
     "                           or with D = 0, depth is unlimited and no statistics are printed\n"
@@ -71,7 +80,10 @@ const char *const kHelp =
     "  --seed S                 random seed for --generate (default 1)\n"
     "  --size MIN:MAX           radius range of generated shapes (default from COUNT)\n"
     "  --overlap                generated shapes may overlap (default: none touch)\n"
-    "  --help                   this text\n";
+    "  --help                   this text\n"
+    "\n"
+    "When stderr is a terminal, a run longer than a second shows its progress there\n"
+    "(reading, building or sampling, writing); never when stderr is redirected.\n";
 
 /// A command-line mistake: reported with the usage, exit status 2. The
 /// message quotes the user's words, so control bytes in them are shown as
@@ -134,6 +146,109 @@ int generate(const std::string &kind, long count, std::uint64_t seed, double lo,
 }
 
 // ---------------------------------------------------------------------------
+// Progress on a terminal: one line on stderr, rewritten in place, from a
+// ticker thread (construct() and write_svg() are single calls), shown once
+// the run has lasted kProgressDelay and only when stderr is a terminal, so
+// redirected output never holds it. stdout is never touched; pause() clears
+// the line before the program prints there or reports an error.
+
+class Progress {
+public:
+  Progress() : start_(Clock::now()), enabled_(isatty(STDERR_FILENO) == 1) {
+    // BVH_PROGRESS_DELAY (seconds) replaces the 1 s delay: tests set 0.
+    if (const char *d = std::getenv("BVH_PROGRESS_DELAY")) delay_ = std::chrono::duration<double>(std::atof(d));
+    if (enabled_) ticker_ = std::thread([this] { tick(); });
+  }
+  ~Progress() {
+    if (!enabled_) return;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stopping_ = true;
+      clear();
+    }
+    wake_.notify_all();
+    ticker_.join();
+  }
+  Progress(const Progress &) = delete;
+  Progress &operator=(const Progress &) = delete;
+
+  /// A new stage ("reading x.disks"); `total` > 0 shows "done of total" with `unit`.
+  void stage(const std::string &what, std::uint64_t total = 0, const char *unit = "") {
+    if (!enabled_) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    what_ = what;
+    total_ = total;
+    unit_ = unit;
+    done_.store(0, std::memory_order_relaxed);
+    paused_ = false;
+    show();
+  }
+  /// How far the stage is (cheap: the ticker reads it).
+  void advance(std::uint64_t done) {
+    if (enabled_) done_.store(done, std::memory_order_relaxed);
+  }
+  /// Clears the line until the next stage().
+  void pause() {
+    if (!enabled_) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    paused_ = true;
+    clear();
+  }
+
+private:
+  using Clock = std::chrono::steady_clock;
+
+  void tick() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    while (!stopping_) {
+      wake_.wait_for(lock, std::chrono::milliseconds(200));
+      if (!stopping_) show();
+    }
+  }
+  // Under mutex_.
+  void show() {
+    const std::chrono::duration<double> elapsed = Clock::now() - start_;
+    if (paused_ || what_.empty() || elapsed < delay_) return;
+    char buf[160];
+    std::string line = "bvh.out: " + what_;
+    if (total_ > 0) {
+      const std::uint64_t done = std::min(done_.load(std::memory_order_relaxed), total_);
+      const bool mb = unit_ == std::string("MB");
+      std::snprintf(buf, sizeof buf, mb ? ": %.1f of %.1f %s (%.0f%%)" : ": %.0f of %.0f %s (%.0f%%)",
+                    double(done) * (mb ? 1e-6 : 1.0), double(total_) * (mb ? 1e-6 : 1.0), unit_,
+                    100.0 * double(done) / double(total_));
+      line += buf;
+    } else {
+      line += "...";
+    }
+    std::snprintf(buf, sizeof buf, "  %.1f s", elapsed.count());
+    line += buf;
+    line = "\r\033[K" + line;
+    std::fputs(line.c_str(), stderr);
+    std::fflush(stderr);
+    shown_ = true;
+  }
+  void clear() {
+    if (!shown_) return;
+    std::fputs("\r\033[K", stderr);
+    std::fflush(stderr);
+    shown_ = false;
+  }
+
+  const Clock::time_point start_;
+  std::chrono::duration<double> delay_{1.0};
+  const bool enabled_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::thread ticker_;
+  std::string what_;
+  std::uint64_t total_ = 0;
+  const char *unit_ = "";
+  std::atomic<std::uint64_t> done_{0};
+  bool paused_ = false, shown_ = false, stopping_ = false;
+};
+
+// ---------------------------------------------------------------------------
 // The course's workflow.
 
 struct Options {
@@ -141,6 +256,7 @@ struct Options {
   int split_threshold = 4;
   int depth_limit = 0; // 0: unlimited, and no statistics (the course's default)
   bool incremental = false, discard_overlap = false, visualize = false, print_tree = false, pairs = false;
+  bool no_output = false; // --no_output: no picture
   bool sah = false; // --build sah
   bool generate = false, overlap = false;
   std::string kind;
@@ -152,21 +268,40 @@ struct Options {
 template <class T> int run(const Options &o) {
   std::vector<T> shapes;
   std::string error;
-  if (!load_scene(o.input, shapes, error)) {
+  Progress progress;
+  std::error_code ec;
+  const std::uintmax_t bytes = std::filesystem::file_size(o.input, ec);
+  progress.stage("reading " + o.input, ec ? 0 : std::uint64_t(bytes), "MB");
+  if (!load_scene(o.input, shapes, error, kReadChunk, [&](std::uint64_t read) { progress.advance(read); })) {
+    progress.pause();
     std::cerr << "bvh.out: " << error << "\n";
     return 1;
   }
   BVH<T> tree(o.split_threshold, o.depth_limit);
   if (o.sah) tree.set_build_rule(BVH<T>::BuildRule::sah);
   if (!o.incremental) {
+    progress.stage("building the tree of " + std::to_string(shapes.size()) + " shapes");
     tree.construct(shapes);
   } else {
-    for (const T &s : shapes)
+    progress.stage(o.discard_overlap ? "sampling" : "inserting", shapes.size(), "shapes");
+    std::uint64_t done = 0;
+    for (const T &s : shapes) {
       if (!o.discard_overlap || !tree.collision(s)) tree.insert(s);
+      progress.advance(++done);
+    }
   }
+  progress.pause();
   if (o.depth_limit > 0) tree.statistics(o.print_tree);
-  if (o.pairs) std::cout << "overlapping pairs: " << tree.count_overlapping_pairs() << std::endl;
+  if (o.pairs) {
+    progress.stage("counting overlapping pairs");
+    const std::size_t pairs = tree.count_overlapping_pairs();
+    progress.pause();
+    std::cout << "overlapping pairs: " << pairs << std::endl;
+  }
+  if (o.no_output) return 0;
+  progress.stage("writing " + o.output);
   if (!write_svg(o.output, tree, o.visualize, &error)) {
+    progress.pause();
     std::cerr << "bvh.out: " << error << "\n";
     return 1;
   }
@@ -200,7 +335,8 @@ double parse_real(const std::string &flag, const std::string &text) {
 std::string option_name(const std::string &arg) {
   static const char *const names[] = {"--input", "--output", "--split_threshold", "--depth_limit",
                                       "--incremental", "--discard_overlap", "--visualize", "--print_tree",
-                                      "--generate", "--seed", "--size", "--overlap", "--pairs", "--build"};
+                                      "--generate", "--seed", "--size", "--overlap", "--pairs", "--build",
+                                      "--no_output"};
   if (arg == "-i") return "--input";
   if (arg == "-o") return "--output";
   for (const char *name : names)
@@ -244,6 +380,8 @@ Options parse_options(int argc, char **argv) {
       o.print_tree = true;
     } else if (name == "--pairs") {
       o.pairs = true;
+    } else if (name == "--no_output") {
+      o.no_output = true;
     } else if (name == "--build") {
       const std::string rule = value();
       if (rule != "course" && rule != "sah") throw UsageError{"--build needs course or sah, not '" + rule + "'"};
@@ -267,7 +405,12 @@ Options parse_options(int argc, char **argv) {
       o.overlap = true;
     }
   }
-  if (o.output.empty()) throw UsageError{"missing -o OUTPUT"};
+  if (o.no_output) {
+    if (o.generate) throw UsageError{"--generate needs -o SCENE, not --no_output"};
+    if (!o.output.empty()) throw UsageError{"--no_output and -o exclude each other"};
+  } else if (o.output.empty()) {
+    throw UsageError{"missing -o OUTPUT"};
+  }
   if (o.generate) {
     if (!o.input.empty()) throw UsageError{"--generate takes no -i"};
     if (!ends_with(o.output, "." + o.kind))
@@ -276,7 +419,7 @@ Options parse_options(int argc, char **argv) {
   }
   if (o.input.empty()) throw UsageError{"missing -i INPUT"};
   if (o.discard_overlap && !o.incremental) throw UsageError{"--discard_overlap needs --incremental"};
-  if (!ends_with(o.output, ".html") && !ends_with(o.output, ".svg"))
+  if (!o.no_output && !ends_with(o.output, ".html") && !ends_with(o.output, ".svg"))
     throw UsageError{"the picture's name must end in .html or .svg: '" + o.output + "'"};
   if (!ends_with(o.input, ".disks") && !ends_with(o.input, ".triangles") && !ends_with(o.input, ".quads") &&
       !ends_with(o.input, ".shapes"))
@@ -302,6 +445,7 @@ bool check_files(const Options &o, std::string &error) {
       return false;
     }
     std::fclose(in);
+    if (o.no_output) return true;
     if (std::filesystem::equivalent(o.input, o.output, ec)) {
       error = "-i and -o name the same file: '" + o.output + "'";
       return false;

@@ -161,6 +161,15 @@ portable() {
   fi
 }
 
+# --no_output and the progress line of bvh.out (tests/cli_output.sh).
+cli_output() {
+  if have python3; then
+    bash tests/cli_output.sh "$OUT/cli_output" ./bvh.out
+  else
+    bad python3_available "python3 is missing: apt-get install python3"
+  fi
+}
+
 # examples/*.cpp (README's library snippets as programs): each checks its own
 # answers against a scan and ends with "ok"; README must still quote them.
 examples() {
@@ -408,6 +417,7 @@ layer python_model python_model
 layer unit unit_tests
 layer portable portable
 layer cli_errors cli_errors
+layer cli_output cli_output
 layer examples examples
 layer browser browser
 finish_layers
