@@ -6,6 +6,7 @@
 #include <iostream>
 #include <iterator>
 #include <limits>
+#include <sstream>
 #include <vector>
 
 #include "bvh.h"
@@ -20,12 +21,14 @@ int main() {
     triangles.push_back(Triangle(Point(c.x - 8, c.y - 5), Point(c.x + 8, c.y - 5), Point(c.x, c.y + 9)));
   }
   const Triangle probe(Point(400, 400), Point(480, 410), Point(430, 470));
-  std::size_t in_box = 0;
+  // The snippet prints to std::cout; the lines are caught here and counted.
+  std::ostringstream printed;
+  std::streambuf *const screen = std::cout.rdbuf(printed.rdbuf());
   // [readme:queries]
   BVH<Triangle> tree;  tree.construct(triangles);
   // every shape whose box meets a box; return false from f to stop early
   tree.query(BoundingBox(Point(0, 0), Point(100, 100)),
-             [&](const Triangle &) { ++in_box; });
+             [](const Triangle &t) { std::cout << t.getBox() << "\n"; });
   // every shape that intersects a shape (exact), into a vector
   std::vector<Triangle> hits;
   tree.query_into(probe, std::back_inserter(hits));
@@ -34,6 +37,9 @@ int main() {
   // the first shape a ray meets (ray tracing), and where: origin + t * dir
   double t;  const Triangle *first = tree.first_hit(Point(0, 500), Point(1, 0), &t);
   // [end]
+  std::cout.rdbuf(screen);
+  std::size_t in_box = 0;
+  for (char c : printed.str()) in_box += c == '\n';
   // The same questions by scans.
   const BoundingBox box(Point(0, 0), Point(100, 100));
   std::size_t scan_box = 0, scan_hits = 0;
