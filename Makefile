@@ -60,7 +60,8 @@ $(BUILD):
 
 # What make test compiles, by compiler (tests/run.sh builds the groups whose
 # compiler is installed, all at once with -j$(JOBS) -k, then runs the layers).
-test-build-gcc: bvh.out $(TESTS) $(SCALAR_TESTS) $(SAN_TESTS) $(CXX20_TESTS) $(EXAMPLES)
+# (Longest compiles first, so that -j ends on short ones.)
+test-build-gcc: $(SAN_TESTS) $(TESTS) $(SCALAR_TESTS) $(CXX20_TESTS) bvh.out $(EXAMPLES)
 test-build-libcxx: $(LIBCXX_TESTS)
 test-build: test-build-gcc test-build-libcxx $(BUILD)/fuzz_parser
 

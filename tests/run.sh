@@ -389,9 +389,10 @@ int main() { return int(std::vector<int>(1).size()) - 1; }' | clang++ -std=c++17
     clang++ -x c++ -fsanitize=fuzzer - -o "$BUILD/fuzz-probe" >/dev/null 2>&1 && HAVE_FUZZER=yes
   rm -f "$BUILD/libcxx-probe" "$BUILD/fuzz-probe"
 fi
-targets=(test-build-gcc)
-[ "$HAVE_LIBCXX" = yes ] && targets+=(test-build-libcxx)
+targets=() # the longest compiles first, so that -j ends on short ones
 [ "$HAVE_FUZZER" = yes ] && targets+=("$BUILD/fuzz_parser")
+targets+=(test-build-gcc)
+[ "$HAVE_LIBCXX" = yes ] && targets+=(test-build-libcxx)
 echo "building: $MAKE -k -j$JOBS ${targets[*]} (log: $LOGS/build.log)"
 build_start=$SECONDS
 {
