@@ -18,7 +18,6 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
-#include <cfloat>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -29,8 +28,6 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <limits>
-#include <memory>
 #include <mutex>
 #include <new>
 #include <string>
