@@ -3,43 +3,85 @@
 #   make CXX=clang++ CXXFLAGS="-std=c++17 -O3"   make test COURSE_DATA=/path/to/course
 CXX ?= g++
 CXXFLAGS ?= -std=c++17 -O2 -Wall -Wextra -pedantic
-SANITIZE ?= -std=c++17 -O1 -g -Wall -Wextra -pedantic -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+SANITIZE ?= -std=c++17 -O0 -g -Wall -Wextra -pedantic -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
 COURSE_DATA ?= ../shared/course
 BUILD ?= build
 
-HEADERS := bvh.h shapes.h intersect.h distance.h svg.h
-TESTS := $(BUILD)/test_bvh $(BUILD)/test_intersect $(BUILD)/test_dynamic $(BUILD)/test_parse
+HEADERS := bvh.h shapes.h intersect.h distance.h svg.h scene.h
+# Parallel jobs of make test's build (and of tests/run.sh's layers).
+JOBS ?= $(shell nproc 2>/dev/null || echo 2)
+UNITS := bvh intersect dynamic parse
+TESTS := $(UNITS:%=$(BUILD)/test_%)
 # test_bvh once more with collision()'s scalar fallback instead of SSE2.
 SCALAR_TESTS := $(BUILD)/test_bvh_scalar
-SAN_TESTS := $(BUILD)/test_bvh_san $(BUILD)/test_intersect_san $(BUILD)/test_dynamic_san $(BUILD)/test_parse_san \
-  $(BUILD)/bvh_san.out
+SAN_TESTS := $(UNITS:%=$(BUILD)/test_%_san) $(BUILD)/bvh_san.out
+# Portable builds: the tree's suites (test_bvh, test_dynamic) under
+# -std=c++20 (g++: the iterator's C++20 concept, the containers), and every
+# unit test with clang++ and libc++ (as on macOS; test_parse there takes the
+# reader's fallback for a missing floating-point from_chars). -O1: these runs
+# check the language and the library, not speed, and -O1 compiles faster.
+PORTABLE_FLAGS ?= -O1 -Wall -Wextra -pedantic
+CLANG_CXX ?= clang++
+CXX20_TESTS := $(BUILD)/test_bvh_cxx20 $(BUILD)/test_dynamic_cxx20
+LIBCXX_TESTS := $(UNITS:%=$(BUILD)/test_%_libcxx)
+# BVH_ASSERT's misuse checks: on (the default build), off (-DNDEBUG), and a
+# user's own handler that throws; construct()'s threads under ThreadSanitizer.
+ASSERT_TESTS := $(BUILD)/test_asserts $(BUILD)/test_asserts_ndebug $(BUILD)/test_asserts_throwing
+TSAN_TESTS := $(BUILD)/test_bvh_tsan
+# examples/*.cpp: README.txt's library snippets as programs that check themselves.
+EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
-.PHONY: all test demo bench clean fuzz bench-dynamic bench-builders
+.PHONY: all test test-build test-build-gcc test-build-libcxx demo bench clean fuzz bench-dynamic bench-builders
 
 all: bvh.out
 
 bvh.out: main.cpp $(HEADERS)
 	$(CXX) $(CXXFLAGS) main.cpp -o $@
 
-# (main.cpp too: test_parse includes it.)
-$(BUILD)/test_%: tests/test_%.cpp tests/check.h tests/scenes.h main.cpp $(HEADERS) | $(BUILD)
+$(BUILD)/test_%: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) $(CXXFLAGS) -I. -Itests $< -o $@
 
 $(BUILD)/test_bvh_scalar: tests/test_bvh.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) $(CXXFLAGS) -DBVH_NO_SIMD -I. -Itests $< -o $@
 
-$(BUILD)/test_%_san: tests/test_%.cpp tests/check.h tests/scenes.h main.cpp $(HEADERS) | $(BUILD)
+$(BUILD)/test_%_san: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) $(SANITIZE) -I. -Itests $< -o $@
 
 $(BUILD)/bvh_san.out: main.cpp $(HEADERS) | $(BUILD)
 	$(CXX) $(SANITIZE) main.cpp -o $@
 
+$(BUILD)/test_%_cxx20: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+	$(CXX) -std=c++20 $(PORTABLE_FLAGS) -I. -Itests $< -o $@
+
+$(BUILD)/test_%_libcxx: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+	$(CLANG_CXX) -std=c++17 -stdlib=libc++ $(PORTABLE_FLAGS) -I. -Itests $< -o $@
+
+$(BUILD)/test_asserts_ndebug: tests/test_asserts.cpp $(HEADERS) | $(BUILD)
+	$(CXX) $(CXXFLAGS) -DNDEBUG -I. $< -o $@
+
+$(BUILD)/test_asserts_throwing: tests/test_asserts.cpp $(HEADERS) | $(BUILD)
+	$(CXX) $(CXXFLAGS) -DBVH_TEST_THROWING_ASSERT -I. $< -o $@
+
+$(BUILD)/test_bvh_tsan: tests/test_bvh.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+	$(CXX) -std=c++17 -O1 -g -Wall -Wextra -pedantic -fsanitize=thread -I. -Itests $< -o $@
+
+$(BUILD)/example_%: examples/%.cpp $(HEADERS) | $(BUILD)
+	$(CXX) $(CXXFLAGS) -I. $< -o $@
+
 $(BUILD):
 	mkdir -p $(BUILD)
 
-# Every test; ends with "N passed, M failed" and fails when M > 0.
-test: bvh.out $(TESTS) $(SAN_TESTS) $(SCALAR_TESTS)
-	CXX="$(CXX)" COURSE_DATA="$(COURSE_DATA)" BUILD="$(BUILD)" bash tests/run.sh
+# What make test compiles, by compiler (tests/run.sh builds the groups whose
+# compiler is installed, all at once with -j$(JOBS) -k, then runs the layers).
+# (Longest compiles first, so that -j ends on short ones.)
+test-build-gcc: $(SAN_TESTS) $(TESTS) $(TSAN_TESTS) $(SCALAR_TESTS) $(CXX20_TESTS) bvh.out $(ASSERT_TESTS) $(EXAMPLES)
+test-build-libcxx: $(LIBCXX_TESTS)
+test-build: test-build-gcc test-build-libcxx $(BUILD)/fuzz_parser
+
+# Every test; ends with "N passed, M failed" and fails when M > 0. The
+# build runs with -j$(JOBS) and so do the independent layers of tests/run.sh.
+test: | $(BUILD)
+	+@MAKE="$(MAKE)" JOBS="$(JOBS)" CXX="$(CXX)" COURSE_DATA="$(COURSE_DATA)" BUILD="$(BUILD)" bash tests/run.sh
 
 # libFuzzer on the scene parser, the tree built from what it accepts and the
 # command-line parser (tests/fuzz_parser.cpp; needs clang++ and its libFuzzer
@@ -49,7 +91,7 @@ FUZZ_SECONDS ?= 60
 FUZZ_CXX ?= clang++
 $(BUILD)/fuzz_parser: tests/fuzz_parser.cpp main.cpp $(HEADERS) | $(BUILD)
 	$(FUZZ_CXX) -std=c++17 -O1 -g -Wall -Wextra -pedantic -fsanitize=fuzzer,address,undefined \
-	  -fno-sanitize-recover=all -I. $< -o $@
+	  -fno-sanitize-recover=all -DBVH_NO_MAIN -I. $< main.cpp -o $@
 
 fuzz: $(BUILD)/fuzz_parser
 	mkdir -p $(BUILD)/fuzz-work
@@ -86,7 +128,7 @@ $(BUILD)/bench-peers: bench-peers
 bench-peers:
 
 # The results name the bvh.h they measured (its sha1, and whether HEAD has it).
-$(BUILD)/bench: bench/bench.cpp main.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
+$(BUILD)/bench: bench/bench.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
 	@id=$$(sha1sum bvh.h | cut -c1-12); head=$$(git rev-parse --short HEAD 2>/dev/null || echo none); \
 	if [ "$$(git show HEAD:bvh.h 2>/dev/null | sha1sum | cut -c1-12)" = "$$id" ]; then st="as in HEAD $$head"; \
 	else st="modified since HEAD $$head"; fi; info="bvh.h sha1 $$id, $$st"; \
@@ -109,7 +151,7 @@ bench-dynamic: $(BUILD)/bench_dynamic
 # incremental insertion (random and sorted order) compared by SAH cost, height, build
 # time and probe time, on the course's scenes (COURSE_DATA) and on 10k-1M random
 # disks; writes bench/results_builders.txt and the chart bench/builders.svg.
-$(BUILD)/bench_builders: bench/builders.cpp main.cpp $(HEADERS) | $(BUILD)
+$(BUILD)/bench_builders: bench/builders.cpp $(HEADERS) | $(BUILD)
 	$(CXX) $(BENCH_CXXFLAGS) bench/builders.cpp -o $@
 
 bench-builders: $(BUILD)/bench_builders

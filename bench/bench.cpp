@@ -35,8 +35,10 @@
 // otherwise the run prints "skipped NAME: apt-get install PACKAGE". To see
 // that path with the peers installed, add -DBENCH_NO_BOOST / -DBENCH_NO_BOX2D.
 
-#define BVH_NO_MAIN
-#include "../main.cpp"
+#include "../bvh.h"
+#include "../scene.h"
+#include "../shapes.h"
+#include "../svg.h"
 
 #include <sys/resource.h>
 #include <sys/types.h>
@@ -585,7 +587,7 @@ template <class T> bool load(const Options &opt, const SceneSpec &s, std::vector
   std::string path, error;
   if (!ensure_scene(opt, s, path)) return false;
   out.clear();
-  if (!load_scene(path, out, error)) {
+  if (!bvh_scene::load_scene(path, out, error)) {
     std::cerr << "bench: " << error << "\n";
     return false;
   }
@@ -854,7 +856,7 @@ void cli_section(const Options &opt, const Report &rep, const Workload &w, std::
           std::vector<Disk> shapes;
           std::string error;
           const Clock::time_point t0 = Clock::now();
-          if (load_scene(path, shapes, error)) o.ids.push_back(std::uint32_t(shapes.size()));
+          if (bvh_scene::load_scene(path, shapes, error)) o.ids.push_back(std::uint32_t(shapes.size()));
           o.seconds = seconds_since(t0);
           return o;
         },

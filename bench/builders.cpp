@@ -10,8 +10,10 @@
 // probes (small disks spread over the canvas). All trees BVH(4, unlimited).
 // Writes the table to stdout and a bar chart of the SAH costs, relative to
 // the course bulk build, to the SVG file named by its argument.
-#define BVH_NO_MAIN
-#include "../main.cpp"
+#include "../bvh.h"
+#include "../scene.h"
+#include "../shapes.h"
+#include "../svg.h"
 
 #include <chrono>
 #include <fstream>
@@ -105,7 +107,7 @@ std::vector<Disk> random_disks(std::size_t n, std::uint64_t seed) {
 template <class T> void course_scene(const std::string &dir, const std::string &name, std::vector<Row> &rows) {
   std::vector<T> shapes;
   std::string error;
-  if (!load_scene(dir + "/" + name, shapes, error)) {
+  if (!bvh_scene::load_scene(dir + "/" + name, shapes, error)) {
     std::printf("(skipped %s: %s)\n", name.c_str(), error.c_str());
     return;
   }

@@ -14,7 +14,7 @@
 #include <tuple>
 #include <vector>
 
-// [own-shape-type]
+// [readme:own_shape_type]
 namespace game {
 struct XY { double x, y; };
 struct Extent { XY lo, hi; XY getMin() const { return lo; } XY getMax() const { return hi; } };
@@ -37,7 +37,7 @@ int main(int argc, char **argv) {
   std::vector<game::Ball> candidates(20000);
   for (game::Ball &b : candidates) b = {coord(rng), coord(rng), radius(rng)};
 
-  // [own-shape-sampling]
+  // [readme:own_shape_sampling]
   BVH<game::Ball> tree(4);
   for (const game::Ball &b : candidates)
     if (!tree.collision(b)) tree.insert(b);
@@ -78,7 +78,7 @@ int main(int argc, char **argv) {
     std::printf("FAIL seed %u: %s\n", seed, why.c_str());
     ++failures;
   }
-  std::printf("%s: kept %zu of %zu balls, %zu probe hits, brute force agrees: %s\n", failures ? "FAIL" : "ok",
-              kept.size(), candidates.size(), hits, failures ? "no" : "yes");
+  std::printf("kept %zu of %zu balls, %zu probe hits; brute force agrees: %s\n%s\n", kept.size(),
+              candidates.size(), hits, failures ? "no" : "yes", failures ? "FAIL" : "ok");
   return failures ? 1 : 0;
 }

@@ -65,6 +65,9 @@ expect cli_output_under_a_file 2 "cannot write" -- -i $good -o "$good/out.html"
 expect cli_input_is_a_directory 2 "cannot open|cannot read|is a directory" -- -i "$dir/dir.disks" -o "$o"
 expect cli_generate_negative_count 2 "--generate" -- --generate disks -5 -o "$dir/x.disks"
 expect cli_generate_missing_count 2 "--generate" -- --generate disks
+expect cli_no_output_with_output 2 "--no_output and -o exclude each other" -- -i $good --no_output -o "$o"
+expect cli_generate_with_no_output 2 "--generate needs -o SCENE, not --no_output" -- --generate disks 10 --no_output
+expect cli_no_output_missing_input_file 2 "cannot open" -- -i "$dir/nothing.disks" --no_output
 expect cli_control_bytes_in_argument_stay_one_line 2 "unknown argument 'a\\\\x0ab'" -- "$(printf 'a\nb')" -o "$o"
 
 # Wrong scenes: FILE:LINE: message, exit 1, no picture.

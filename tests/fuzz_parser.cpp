@@ -11,14 +11,27 @@
 // bits the kind: disks, triangles, quads, or 3: the command line when the
 // byte is odd and a mixed scene when even), the rest
 // is a scene file (or, for the command-line path, NUL-separated arguments).
-#define BVH_NO_MAIN
-#include "../main.cpp"
-
+// The scene paths use scene.h; the command-line path calls
+// bvh_parse_command_line of main.cpp, linked in (built with -DBVH_NO_MAIN).
+#include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <sstream>
+#include <string>
+#include <vector>
+
+#include "bvh.h"
+#include "intersect.h"
+#include "scene.h"
+#include "shapes.h"
+#include "svg.h"
+
+int bvh_parse_command_line(int argc, char **argv, int &split_threshold, int &depth_limit, std::string &message);
 
 namespace {
+
+using bvh_scene::parse_scene;
 
 void require(bool ok, const char *what) {
   if (!ok) {
@@ -104,12 +117,12 @@ void command_line(const char *data, std::size_t size) {
   std::vector<char *> argv;
   for (std::string &w : words) argv.push_back(&w[0]);
   argv.push_back(nullptr);
-  try {
-    const Options o = parse_options(int(words.size()), argv.data());
-    require(o.split_threshold >= 1 && o.depth_limit >= 0, "parsed limits are in range");
-  } catch (const UsageError &e) {
-    require(!e.message.empty() && e.message.find('\n') == std::string::npos, "usage errors are one line");
-  }
+  int split_threshold = 0, depth_limit = -1;
+  std::string message;
+  if (bvh_parse_command_line(int(words.size()), argv.data(), split_threshold, depth_limit, message) == 0)
+    require(split_threshold >= 1 && depth_limit >= 0, "parsed limits are in range");
+  else
+    require(!message.empty() && message.find('\n') == std::string::npos, "usage errors are one line");
 }
 
 } // namespace

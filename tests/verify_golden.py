@@ -206,7 +206,18 @@ def insert(root, shape, k, limit):
     return root
 
 
-# ---- exact geometry (rationals) for discard-overlap -----------------------
+# ---- exact geometry for discard-overlap and pairs ---------------------------
+# Every coordinate and radius is a float32 value, and every float32 value times
+# 2^149 is an integer: scaled so, the predicates below are exact integer
+# arithmetic (no rounding anywhere), the same values Fractions would give, only
+# faster. Divisions are avoided by cross-multiplying.
+
+SCALE = 2.0 ** 149
+
+
+def scaled(v):
+    return int(v * SCALE)  # exact: a power-of-two scaling of a float32 value (load() reads only those)
+
 
 def orient(a, b, c):
     v = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
@@ -234,25 +245,31 @@ def inside_or_on(poly, p):
     for i in range(n):
         a, b = poly[i], poly[(i + 1) % n]
         if (a[1] > p[1]) != (b[1] > p[1]):
-            x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1])
-            if p[0] < x:
+            # p[0] < a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]), times (b[1] - a[1]) != 0
+            lhs, rhs = (p[0] - a[0]) * (b[1] - a[1]), (p[1] - a[1]) * (b[0] - a[0])
+            if (lhs < rhs) if b[1] > a[1] else (lhs > rhs):
                 crossings += 1
     return crossings % 2 == 1
 
 
-def seg_point_dist2(a, b, p):
+def seg_point_within(a, b, p, r2):
+    """Whether the squared distance from p to the segment ab is <= r2."""
     abx, aby = b[0] - a[0], b[1] - a[1]
     apx, apy = p[0] - a[0], p[1] - a[1]
     ll = abx * abx + aby * aby
-    t = Fraction(0) if ll == 0 else (apx * abx + apy * aby) / ll
-    t = min(max(t, Fraction(0)), Fraction(1))
-    qx, qy = a[0] + t * abx - p[0], a[1] + t * aby - p[1]
-    return qx * qx + qy * qy
+    dot = apx * abx + apy * aby
+    if ll == 0 or dot <= 0:  # nearest point a
+        return apx * apx + apy * apy <= r2
+    if dot >= ll:  # nearest point b
+        bpx, bpy = p[0] - b[0], p[1] - b[1]
+        return bpx * bpx + bpy * bpy <= r2
+    # |ap|^2 - dot^2 / ll <= r2, times ll > 0
+    return (apx * apx + apy * apy) * ll - dot * dot <= r2 * ll
 
 
 def exact_intersect(s, t):
-    fs = (s[0], [(Fraction(x), Fraction(y)) for x, y in s[1]], Fraction(s[2]))
-    ft = (t[0], [(Fraction(x), Fraction(y)) for x, y in t[1]], Fraction(t[2]))
+    fs = (s[0], [(scaled(x), scaled(y)) for x, y in s[1]], scaled(s[2]))
+    ft = (t[0], [(scaled(x), scaled(y)) for x, y in t[1]], scaled(t[2]))
     if fs[0] == "disk" and ft[0] == "disk":
         (a,), (b,) = fs[1], ft[1]
         dx, dy = a[0] - b[0], a[1] - b[1]
@@ -262,7 +279,7 @@ def exact_intersect(s, t):
         c, r, pts = disk[1][0], disk[2], poly[1]
         if inside_or_on(pts, c):
             return True
-        return any(seg_point_dist2(pts[i], pts[(i + 1) % len(pts)], c) <= r * r for i in range(len(pts)))
+        return any(seg_point_within(pts[i], pts[(i + 1) % len(pts)], c, r * r) for i in range(len(pts)))
     p, q = fs[1], ft[1]
     for i in range(len(p)):
         for j in range(len(q)):

@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# tests/cmake_consumer.sh DIR — the CMake package (CMakeLists.txt) as a user
+# meets it: configure, build and install bvh into DIR/prefix; build
+# tests/consumer against that install with find_package, and again from the
+# sources with add_subdirectory; run the consumer and the installed bvh.out.
+# Prints `ok NAME` or `FAIL NAME why` per case (read by tests/run.sh), or
+# `skip REASON` alone when cmake is not installed.
+set -u
+cd "$(dirname "$0")/.."
+dir=${1:-build/test-out/cmake}
+if ! command -v cmake >/dev/null 2>&1; then
+  echo "skip cmake is not installed (apt-get install cmake)"
+  exit 0
+fi
+rm -rf "$dir"
+mkdir -p "$dir"
+dir=$(cd "$dir" && pwd)
+src=$(pwd)
+prefix=$dir/prefix
+jobs=${JOBS:-2}
+
+step() { # NAME LOG COMMAND...: one case, passing when COMMAND exits 0
+  local name=$1 log=$dir/$2.log
+  shift 2
+  if "$@" >"$log" 2>&1; then
+    echo "ok $name"
+  else
+    echo "FAIL $name see $log"
+    return 1
+  fi
+}
+
+# 1. bvh itself: configure, build (bvh.out), install.
+if step cmake_configure_build_install_bvh bvh bash -c "
+  cmake -S '$src' -B '$dir/bvh-build' -DCMAKE_INSTALL_PREFIX='$prefix' &&
+  cmake --build '$dir/bvh-build' -j $jobs && cmake --install '$dir/bvh-build'"; then
+  missing=
+  for f in include/bvh/bvh.h include/bvh/shapes.h include/bvh/intersect.h include/bvh/distance.h \
+    include/bvh/svg.h include/bvh/scene.h bin/bvh.out share/cmake/bvh/bvhConfig.cmake \
+    share/cmake/bvh/bvhConfigVersion.cmake share/cmake/bvh/bvhTargets.cmake; do
+    [ -f "$prefix/$f" ] || missing="$missing $f"
+  done
+  if [ -z "$missing" ]; then echo "ok cmake_install_has_headers_cli_and_config"; else
+    echo "FAIL cmake_install_has_headers_cli_and_config missing:$missing"; fi
+  # The installed bvh.out prints the hand-checked golden statistics.
+  if "$prefix/bin/bvh.out" -i inputs/36.triangles -o "$dir/36.html" --depth_limit 2 --visualize --print_tree \
+    >"$dir/36.txt" 2>&1 && cmp -s "$dir/36.txt" expected_output/inputs/36_triangles_2.txt; then
+    echo "ok cmake_installed_bvh_out_matches_golden"
+  else
+    echo "FAIL cmake_installed_bvh_out_matches_golden diff $dir/36.txt expected_output/inputs/36_triangles_2.txt"
+  fi
+
+  # 2. find_package against the install; the package must come from the prefix.
+  if step cmake_consumer_find_package consumer-find bash -c "
+    cmake -S tests/consumer -B '$dir/consumer-find' -DCMAKE_PREFIX_PATH='$prefix' &&
+    cmake --build '$dir/consumer-find' -j $jobs"; then
+    if grep -q "^bvh_DIR:PATH=$prefix/share/cmake/bvh\$" "$dir/consumer-find/CMakeCache.txt"; then
+      echo "ok cmake_consumer_found_the_installed_package"
+    else
+      echo "FAIL cmake_consumer_found_the_installed_package bvh_DIR is $(grep '^bvh_DIR' "$dir/consumer-find/CMakeCache.txt")"
+    fi
+    step cmake_consumer_find_package_runs consumer-find-run "$dir/consumer-find/consumer" inputs/overlap_1000.disks
+  fi
+fi
+
+# 3. add_subdirectory on the sources (no install needed).
+if step cmake_consumer_add_subdirectory consumer-sub bash -c "
+  cmake -S tests/consumer -B '$dir/consumer-sub' -DBVH_SOURCE_DIR='$src' &&
+  cmake --build '$dir/consumer-sub' -j $jobs"; then
+  step cmake_consumer_add_subdirectory_runs consumer-sub-run "$dir/consumer-sub/consumer" inputs/overlap_1000.disks
+fi

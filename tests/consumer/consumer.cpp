@@ -1,0 +1,37 @@
+// tests/consumer/consumer.cpp — a program of another project: reads a scene
+// with scene.h, samples it as bvh.out --discard_overlap does, and checks the
+// sample against a scan. Prints "consumer: ok ..." and exits 0, or exits 1.
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "bvh.h"
+#include "scene.h"
+
+static_assert(__cplusplus >= 201703L, "bvh::bvh asks for C++17");
+
+int main(int argc, char **argv) {
+  if (argc != 2) {
+    std::cerr << "usage: consumer SCENE.disks\n";
+    return 2;
+  }
+  std::vector<Disk> disks;
+  std::string error;
+  if (!bvh_scene::load_scene(argv[1], disks, error)) {
+    std::cerr << "consumer: " << error << "\n";
+    return 1;
+  }
+  BVH<Disk> tree(4, 8);
+  for (const Disk &d : disks)
+    if (!tree.collision(d)) tree.insert(d);
+  std::vector<Disk> scan;
+  for (const Disk &d : disks) {
+    bool touches = false;
+    for (const Disk &k : scan) touches = touches || intersect(k, d);
+    if (!touches) scan.push_back(d);
+  }
+  const bool ok = tree.size() == scan.size() && tree.validate() && !disks.empty();
+  std::cout << "consumer: " << (ok ? "ok" : "MISMATCH") << " read " << disks.size() << ", kept " << tree.size()
+            << " (scan " << scan.size() << ")\n";
+  return ok ? 0 : 1;
+}
