@@ -14,14 +14,18 @@
 //   tree.statistics(/*print_tree=*/true);    // the course's report, to stdout
 //
 // Complexity (n shapes, k = split_threshold): construct O(n log n)
-// (selection, not sorting, at every level); insert O(log n) amortised,
+// (selection, not sorting, at every level; subtrees on several threads for
+// large scenes, the same tree whatever their number); insert O(log n) amortised,
 // including the partial rebuilds that keep the tree balanced under any
 // insertion order; collision O(log n + shapes whose boxes touch the probe);
 // iteration O(1) amortised per step. Copy, destruction and every traversal
 // are iterative, so no input can overflow the stack.
 //
-// Where to look: the build rule is `build_subtree`; the insertion strategy is
-// `choose_child` plus `rebalance_path`; the tree's box arithmetic is
+// Where to look: the build rule is `CourseRule` (`SahRule` the alternative),
+// which plugs into the one build loop `build_top_down`; the insertion
+// strategy is `choose_child` plus `rebalance_path`; every traversal is
+// `walk`; the leaves' shapes are in `bvh_detail::LeafPool`; the tree's box
+// arithmetic is
 // `bvh_detail::Box`; the intersection predicates are the free intersect()
 // of the shape type, found by argument-dependent lookup (this project's
 // exact ones are in intersect.h, which shapes.h brings in).
@@ -579,12 +583,14 @@ template <class X> struct Scratch {
 /// render_recolor() `setColor(const Color&)`. Shapes live only in leaves,
 /// each exactly once; every node knows the tight box of its subtree.
 ///
-/// Storage: nodes live in two parallel arrays (bvh_detail::BlockVector).
-/// `nodes_` holds what queries
-/// read, 64 bytes a node (one cache line): the boxes of its children, in
-/// float rounded outwards, and their indices, so a query decides all three
-/// children from one line. `info_` holds the rest: the exact double box,
-/// parent, depth, shape count and, for leaves, the shapes.
+/// Storage: nodes live in two parallel arrays (bvh_detail::BlockVector),
+/// after construct() in pre-order with each node's children adjacent.
+/// `nodes_` holds what queries read, 64 bytes a node (one cache line): an
+/// inner node's children's boxes, in float rounded outwards, and their
+/// indices, so a query decides all three children from one line; a leaf's
+/// pool slot and shape count. `info_` holds the rest: the exact double box,
+/// parent, depth, shape count and, for leaves, the slot that owns the
+/// shapes. The shapes themselves live in one pool (bvh_detail::LeafPool).
 template <class T> class BVH {
   using Box = bvh_detail::Box;
 
@@ -734,8 +740,8 @@ public:
 
   /// How construct() and the splits and rebuilds of insert() cut a node.
   enum class BuildRule {
-    course, ///< the course's rule (build_subtree): thirds by count along the longer side
-    sah     ///< binned surface area heuristic (build_subtree_sah): the cut of least area cost
+    course, ///< the course's rule (CourseRule): thirds by count along the longer side
+    sah     ///< binned surface area heuristic (SahRule): the cut of least area cost
   };
   /// Chooses the build rule for later builds (course by default: the
   /// course's expected output follows it).
@@ -754,7 +760,7 @@ public:
   }
 
   /// Replaces the contents with `elements`, built top-down by the course's
-  /// rule (see build_subtree).
+  /// rule (see CourseRule).
   void construct(const std::vector<T> &elements) {
     clear();
     if (elements.empty()) return;
