@@ -138,6 +138,7 @@ finish_layers() {
 # Unit and model tests (tests/test_*.cpp, tests/check.h), default build.
 unit_tests() {
   run_suite test_bvh "$BUILD/test_bvh"
+  run_suite test_threads "$BUILD/test_threads"
   run_suite test_intersect "$BUILD/test_intersect"
   run_suite test_dynamic "$BUILD/test_dynamic"
   run_suite test_parse "$BUILD/test_parse"
@@ -148,6 +149,7 @@ unit_tests() {
 # The unit tests and the CLI under AddressSanitizer + UBSan.
 sanitizers() {
   BVH_TEST_SCALE=0.3 run_suite test_bvh_sanitized "$BUILD/test_bvh_san"
+  BVH_TEST_SCALE=0.3 run_suite test_threads_sanitized "$BUILD/test_threads_san"
   BVH_TEST_SCALE=0.3 run_suite test_intersect_sanitized "$BUILD/test_intersect_san"
   BVH_TEST_SCALE=0.5 run_suite test_dynamic_sanitized "$BUILD/test_dynamic_san"
   BVH_TEST_SCALE=0.1 run_suite test_parse_sanitized "$BUILD/test_parse_san"
@@ -173,6 +175,7 @@ portable() {
     run_suite test_intersect_libcxx "$BUILD/test_intersect_libcxx"
     run_suite test_dynamic_libcxx "$BUILD/test_dynamic_libcxx"
     run_suite test_parse_libcxx "$BUILD/test_parse_libcxx"
+    run_suite test_threads_libcxx "$BUILD/test_threads_libcxx"
   else
     skip "test_*_libcxx" "clang++ with libc++ is not installed (apt-get install clang libc++-dev libc++abi-dev)"
   fi
@@ -209,8 +212,7 @@ asserts() {
 
 # construct()'s build threads under ThreadSanitizer: a data race fails it.
 tsan() {
-  BVH_TEST_SCALE=0.25 run_suite parallel_build_under_thread_sanitizer "$BUILD/test_bvh_tsan" \
-    parallel_build_is_the_sequential_build
+  BVH_TEST_SCALE=0.25 run_suite test_threads_under_thread_sanitizer "$BUILD/test_threads_tsan"
 }
 
 # bvh.h alone in the course's framework (stand-ins written from the spec),
@@ -361,6 +363,7 @@ valgrind_layer() {
   fi
   local VG=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=all --show-leak-kinds=all)
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_bvh "${VG[@]}" "$BUILD/test_bvh"
+  BVH_TEST_SCALE=0.05 run_suite valgrind_test_threads "${VG[@]}" "$BUILD/test_threads"
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_intersect"
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_dynamic"
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_parse"

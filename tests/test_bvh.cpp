@@ -155,40 +155,13 @@ TEST(bulk_build_equals_literal_course_rule_mixed) { check_build_against_referenc
 // builds subtrees on several threads for scenes of kParallelMin shapes or
 // more: whatever the thread count, the tree must be the one-thread tree, and
 // every node laid out must be used (validate() counts them).
-TEST(parallel_build_is_the_sequential_build) {
-  const unsigned seed = base_seed() + 11;
-  const std::size_t n = BVH<Disk>::kParallelMin + 4321;
-  const int rounds = scaled(4);
-  for (int round = 0; round < rounds; ++round) {
-    note(seed_note(seed, round));
-    Maker make(seed + unsigned(round), round % 2 ? 5.0 : 0.0); // odd rounds: many tied centres
-    const std::vector<Disk> disks = make.scene<Disk>(int(n), 6);
-    const std::vector<Triangle> triangles = make.scene<Triangle>(int(n), 6);
-    const int k = 1 + round % 5, limit = round % 3 == 2 ? 7 : 0;
-    std::string one_disks, one_triangles;
-    for (unsigned threads : {1u, 2u, 3u, 8u}) {
-      BVH<Disk> a(k, limit);
-      a.set_build_threads(threads);
-      a.construct(disks);
-      BVH<Triangle> b(k, limit);
-      b.set_build_threads(threads);
-      b.construct(triangles);
-      std::string why;
-      CHECK(a.validate(&why) && b.validate(&why));
-      if (!why.empty()) note(seed_note(seed, round) + " " + why);
-      if (threads == 1) {
-        one_disks = report(a);
-        one_triangles = report(b);
-        CHECK(a.size() == n && b.size() == n);
-      } else {
-        CHECK(report(a) == one_disks);
-        CHECK(report(b) == one_triangles);
-      }
-    }
-  }
-  // And once against the literal rule itself, at a size that uses threads.
-  Maker make(seed, 2.0);
-  const std::vector<Disk> disks = make.scene<Disk>(int(n), 6);
+// construct() on several threads (tests/test_threads.cpp compares thread
+// counts, here and under ThreadSanitizer): once against the literal rule
+// itself, at a size that uses threads.
+TEST(threaded_build_equals_the_literal_course_rule) {
+  if (scale() < 1) return; // the literal rule is slow at this size
+  Maker make(base_seed() + 12, 2.0);
+  const std::vector<Disk> disks = make.scene<Disk>(int(BVH<Disk>::kParallelMin + 4321), 6);
   BVH<Disk> tree(4, 0);
   tree.set_build_threads(2);
   tree.construct(disks);

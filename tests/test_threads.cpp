@@ -1,0 +1,77 @@
+// tests/test_threads.cpp — construct() on several threads. A scene of
+// kParallelMin shapes or more is laid out from counts alone
+// (bvh_detail::Layout) and its subtrees built at once: whatever the number
+// of threads, the tree must be the one-thread tree, and every node laid out
+// must be used (validate() counts them). make test also runs this file
+// built with -fsanitize=thread, where a data race fails it.
+#include <string>
+#include <vector>
+
+#include "bvh.h"
+#include "check.h"
+#include "scenes.h"
+
+namespace {
+
+std::string report(const BVH<Disk> &tree) {
+  std::ostringstream out;
+  tree.statistics(out, true);
+  return out.str();
+}
+std::string report(const BVH<Triangle> &tree) {
+  std::ostringstream out;
+  tree.statistics(out, true);
+  return out.str();
+}
+
+/// Builds `shapes` on each number of threads: every tree must validate and
+/// print the one-thread tree's report.
+template <class T>
+void check_thread_counts(const std::vector<T> &shapes, int k, int limit, const std::vector<unsigned> &thread_counts,
+                         const std::string &where) {
+  std::string first;
+  for (unsigned threads : thread_counts) {
+    BVH<T> tree(k, limit);
+    tree.set_build_threads(threads);
+    tree.construct(shapes);
+    std::string why;
+    CHECK(tree.validate(&why));
+    if (!why.empty()) note(where + " " + why);
+    CHECK(tree.size() == shapes.size());
+    if (first.empty())
+      first = report(tree);
+    else
+      CHECK(report(tree) == first);
+  }
+}
+
+} // namespace
+
+TEST(parallel_build_is_the_sequential_build) {
+  const unsigned seed = base_seed() + 11;
+  const std::size_t n = BVH<Disk>::kParallelMin + 4321;
+  // Scaled-down runs (valgrind, the sanitizers) check one disk scene on 1
+  // and 2 threads: a tree of the same size, fewer of them.
+  const bool full = scale() >= 1;
+  const std::vector<unsigned> thread_counts = full ? std::vector<unsigned>{1, 2, 3, 8} : std::vector<unsigned>{1, 2};
+  for (int round = 0; round < scaled(4); ++round) {
+    const std::string where = "BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
+    note(where);
+    Maker make(seed + unsigned(round), round % 2 ? 5.0 : 0.0); // odd rounds: many tied centres
+    const int k = 1 + round % 5, limit = round % 3 == 2 ? 7 : 0;
+    check_thread_counts(make.scene<Disk>(int(n), 6), k, limit, thread_counts, where);
+    if (full) check_thread_counts(make.scene<Triangle>(int(n), 6), k, limit, thread_counts, where);
+  }
+}
+
+TEST(small_scenes_never_use_threads_and_build_the_same) {
+  // Under kParallelMin the build runs on the caller alone whatever is asked.
+  Maker make(base_seed() + 13, 3.0);
+  const std::vector<Disk> disks = make.scene<Disk>(scaled(5000), 6);
+  check_thread_counts(disks, 4, 0, {1, 2, 0}, "small scene");
+}
+
+int main(int argc, char **argv) {
+  std::cout << "seed " << base_seed() << " (set BVH_SEED to change), scale " << scale() << std::endl;
+  return run_all_tests(argc, argv);
+}
