@@ -82,8 +82,10 @@
 // that its visit's state (a query's probe) stays in registers.
 #if defined(__GNUC__)
 #define BVH_ALWAYS_INLINE inline __attribute__((always_inline))
+#define BVH_LAMBDA_INLINE __attribute__((always_inline))
 #else
 #define BVH_ALWAYS_INLINE inline
+#define BVH_LAMBDA_INLINE
 #endif
 
 namespace bvh_detail {
@@ -879,7 +881,7 @@ public:
     if (!info_[root_].box.overlaps(box)) return false;
     const Probe probe = Probe::around(box);
     // Children holding the probe's centre first: a hit there is likely.
-    return !walk(root_, [&](int n) -> unsigned {
+    return !walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
         const T *s = pool_.data(leaf_slot(node));
