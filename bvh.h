@@ -300,7 +300,7 @@ struct XY {
 };
 
 /// The box of a stored shape, read through getBox().getMin()/getMax().
-template <class T> Box box_of(const T &shape) { return Box::of(shape.getBox()); }
+template <class T> BVH_ALWAYS_INLINE Box box_of(const T &shape) { return Box::of(shape.getBox()); }
 
 /// Appends `[<x0 y0> <x1 y1>]` with every number as %5.1f: the course's
 /// listing of a box, written here so that neither the stream's flags nor
@@ -814,9 +814,8 @@ public:
     std::size_t next = 0;
     for_each_preorder([&](int n) {
       if (nodes_[n].num_children != 0) return;
-      const std::size_t count = info_[n].count;
-      for (std::size_t i = next; i < next + count; ++i) leaf_push(n, std::move(rule.shape(i)), count);
-      next += count;
+      fill_leaf(n, rule, next, next + info_[n].count);
+      next += info_[n].count;
     });
     std::vector<Item>().swap(scratch_.value.items);
   }
@@ -862,11 +861,16 @@ public:
       path.push(n);
       n = choose_child(n, box);
     }
-    leaf_push(n, shape);
     if (int(info_[n].count) > split_threshold_ && may_split_at(info_[n].depth)) {
+      // The leaf splits: its shapes and the new one go straight to the build
+      // (pushing first could move the slot to a larger class for nothing).
       std::vector<T> shapes;
+      shapes.reserve(info_[n].count);
       take_shapes(n, shapes);
+      shapes.push_back(shape);
       build(n, shapes);
+    } else {
+      leaf_push(n, shape);
     }
     rebalance_path(path, n);
   }
@@ -1238,6 +1242,15 @@ private:
     node.child[1] = in.has_shapes ? std::int32_t(in.shapes.cls) : 0;
     node.child[2] = in.has_shapes ? std::int32_t(pool_.size(in.shapes)) : 0;
   }
+  /// Gives leaf n (holding no shapes) the rule's items [begin, end), moved,
+  /// in one slot of their size.
+  template <class Rule> void fill_leaf(int n, Rule &rule, std::size_t begin, std::size_t end) {
+    Info &in = info_[n];
+    in.shapes = pool_.allocate(end - begin);
+    in.has_shapes = true;
+    for (std::size_t i = begin; i < end; ++i) pool_.push_back(in.shapes, std::move(rule.shape(i)));
+    sync_leaf(n);
+  }
   /// Moves leaf n's shapes to the end of `out` and gives its slot back.
   void take_shapes(int n, std::vector<T> &out) {
     for (T &s : shapes_of(n)) out.push_back(std::move(s));
@@ -1415,7 +1428,7 @@ private:
   template <class V> void visit_overlapping(const Box &box, V &&visit) const {
     if (root_ < 0 || !info_[root_].box.overlaps(box)) return;
     const Probe probe = Probe::around(box);
-    walk(root_, [&](int n) -> unsigned {
+    walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
         for (const T &s : shapes_of(n))
@@ -1496,7 +1509,7 @@ private:
     if (root_ < 0 || !info_[root_].box.contains(box)) return false;
     // A float child box is its exact box rounded outwards: it holds `box`
     // whenever the exact one does.
-    return !walk(root_, [&](int n) -> unsigned {
+    return !walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
         const bvh_detail::Span<const T> v = shapes_of(n);
@@ -1848,8 +1861,7 @@ private:
         nodes_[t.node].num_children = 0;
         // A laid-out build (construct) gathers every leaf's shapes at the
         // end, in one pass, with no thread touching the pool.
-        if (!layout)
-          for (std::size_t i = t.begin; i < t.end; ++i) leaf_push(t.node, std::move(rule.shape(i)), n);
+        if (!layout) fill_leaf(t.node, rule, t.begin, t.end);
         continue;
       }
       std::size_t cut[4];
@@ -1922,7 +1934,7 @@ private:
     std::vector<T> shapes;
     shapes.reserve(info_[at].count);
     // (free_node leaves a node's children in place, so the walk goes on.)
-    walk(at, [&](int n) -> unsigned {
+    walk(at, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
       take_shapes(n, shapes);
       if (n != at) free_node(n);
       return all_children(n);
@@ -1937,7 +1949,7 @@ private:
   /// Calls f(node index) on every node in pre-order (children left to right).
   template <class F> void for_each_preorder(F &&f) const {
     if (root_ < 0) return;
-    walk(root_, [&](int n) -> unsigned {
+    walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
       f(n);
       return all_children(n);
     });
