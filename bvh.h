@@ -1718,6 +1718,21 @@ private:
     std::vector<Item> &items_;
   };
 
+  /// The items of SahRule and InOrderRule: the shapes themselves, taken in
+  /// their current order at a leaf; no state carried down.
+  class ShapesAsItems {
+  public:
+    struct State {};
+    explicit ShapesAsItems(std::vector<T> &shapes) : v_(shapes) {}
+    Box box(std::size_t i) const { return bvh_detail::box_of(v_[i]); }
+    T &shape(std::size_t i) { return v_[i]; }
+    void order_leaf(const BuildTask<State> &) {}
+    static State root_state() { return State{}; }
+
+  protected:
+    std::vector<T> &v_;
+  };
+
   /// The alternative build rule, binned SAH for a ternary tree. Leaves are
   /// where the course's rule makes them. Otherwise the shapes' centres are
   /// binned into kSahBins slots along each axis, and the node is cut at the
@@ -1728,16 +1743,14 @@ private:
   /// falls back to the course's cut into thirds by count on the longer side.
   /// O(n) per level plus O(kSahBins^2) per node: O(n log n) for a balanced
   /// result.
-  class SahRule {
+  class SahRule : public ShapesAsItems {
   public:
-    struct State {};
-    explicit SahRule(std::vector<T> &shapes) : v_(shapes) {}
-    Box box(std::size_t i) const { return bvh_detail::box_of(v_[i]); }
-    T &shape(std::size_t i) { return v_[i]; }
-    void order_leaf(const BuildTask<State> &) {}
+    using State = typename ShapesAsItems::State;
+    using ShapesAsItems::ShapesAsItems;
     void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State *) {
+      std::vector<T> &v = this->v_; // (a dependent base: named through this)
       Box centres;
-      for (std::size_t i = t.begin; i < t.end; ++i) centres.extend(Box::at(v_[i].getCenter()));
+      for (std::size_t i = t.begin; i < t.end; ++i) centres.extend(Box::at(v[i].getCenter()));
       // Best (axis, first cut, second cut) over both axes.
       double best_cost = std::numeric_limits<double>::infinity();
       int best_axis = -1, best_i = 0, best_j = 0;
@@ -1748,8 +1761,8 @@ private:
         Box bin_box[kSahBins];
         std::size_t bin_count[kSahBins] = {};
         for (std::size_t i = t.begin; i < t.end; ++i) {
-          const int b = bin_of(v_[i], axis, lo, extent);
-          bin_box[b].extend(bvh_detail::box_of(v_[i]));
+          const int b = bin_of(v[i], axis, lo, extent);
+          bin_box[b].extend(bvh_detail::box_of(v[i]));
           ++bin_count[b];
         }
         // Groups: bins [0, i), [i, j), [j, kSahBins).
@@ -1784,15 +1797,15 @@ private:
           }
         }
       }
-      const auto first = v_.begin() + long(t.begin), last = v_.begin() + long(t.end);
+      const auto first = v.begin() + long(t.begin), last = v.begin() + long(t.end);
       if (best_axis >= 0) {
         const double lo = best_axis ? centres.y0 : centres.x0;
         const double extent = (best_axis ? centres.y1 : centres.x1) - lo;
         const auto mid1 = std::partition(first, last, [&](const T &s) { return bin_of(s, best_axis, lo, extent) < best_i; });
         const auto mid2 = std::partition(mid1, last, [&](const T &s) { return bin_of(s, best_axis, lo, extent) < best_j; });
         cut[0] = t.begin;
-        cut[1] = std::size_t(mid1 - v_.begin());
-        cut[2] = std::size_t(mid2 - v_.begin());
+        cut[1] = std::size_t(mid1 - v.begin());
+        cut[2] = std::size_t(mid2 - v.begin());
         cut[3] = t.end;
       } else {
         // Fallback: thirds by count along the longer side of the box.
@@ -1801,18 +1814,16 @@ private:
         auto less = [axis](const T &a, const T &b) {
           return axis ? a.getCenter().y < b.getCenter().y : a.getCenter().x < b.getCenter().x;
         };
-        std::nth_element(first, v_.begin() + long(cut[1]), last, less);
-        std::nth_element(v_.begin() + long(cut[1]), v_.begin() + long(cut[2]), last, less);
+        std::nth_element(first, v.begin() + long(cut[1]), last, less);
+        std::nth_element(v.begin() + long(cut[1]), v.begin() + long(cut[2]), last, less);
       }
     }
-    static State root_state() { return State{}; }
 
   private:
     static int bin_of(const T &s, int axis, double lo, double extent) {
       const double c = axis ? s.getCenter().y : s.getCenter().x;
       return std::min(kSahBins - 1, int(double(kSahBins) * (c - lo) / extent));
     }
-    std::vector<T> &v_;
   };
   /// Bins per axis of the SAH build.
   static constexpr int kSahBins = 16;
@@ -1820,18 +1831,11 @@ private:
   /// Thirds in the order given, without sorting: where leaf order must
   /// survive (erase). Shapes that come out of a subtree in leaf order are
   /// already spatially grouped.
-  class InOrderRule {
+  class InOrderRule : public ShapesAsItems {
   public:
-    struct State {};
-    explicit InOrderRule(std::vector<T> &shapes) : v_(shapes) {}
-    Box box(std::size_t i) const { return bvh_detail::box_of(v_[i]); }
-    T &shape(std::size_t i) { return v_[i]; }
-    void order_leaf(const BuildTask<State> &) {}
+    using State = typename ShapesAsItems::State;
+    using ShapesAsItems::ShapesAsItems;
     void cut(const BuildTask<State> &t, const Box &, std::size_t cut[4], State *) { cut_in_thirds(t.begin, t.end, cut); }
-    static State root_state() { return State{}; }
-
-  private:
-    std::vector<T> &v_;
   };
 
   /// The shared loop: builds every task of `tasks` (and what they spawn) by
