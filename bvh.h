@@ -443,12 +443,6 @@ public:
     d[n - 1].~T();
     --classes_[s.cls].sizes[s.index];
   }
-  /// Bytes held (blocks and tables), for reports.
-  std::size_t bytes() const {
-    std::size_t b = 0;
-    for (const Class &c : classes_) b += c.bytes();
-    return b;
-  }
 
 private:
   static constexpr std::size_t kBlockBytes = 32768;
@@ -520,9 +514,6 @@ private:
     T *data(std::uint32_t i) { return blocks_[i >> block_shift_] + (std::size_t(i & (per_block_ - 1)) << cls_); }
     const T *data(std::uint32_t i) const {
       return blocks_[i >> block_shift_] + (std::size_t(i & (per_block_ - 1)) << cls_);
-    }
-    std::size_t bytes() const {
-      return blocks_.size() * per_block_ * capacity_ * sizeof(T) + sizes.capacity() * 4 + free_slots.capacity() * 4;
     }
 
   private:
@@ -1224,11 +1215,11 @@ private:
     if (!in.has_shapes) return {nullptr, 0};
     return {pool_.data(in.shapes), pool_.size(in.shapes)};
   }
-  /// Appends a shape to leaf n (a slot for `room` shapes if it has none).
-  template <class V> void leaf_push(int n, V &&shape, std::size_t room = 1) {
+  /// Appends a shape to leaf n (giving it a slot if it has none).
+  template <class V> void leaf_push(int n, V &&shape) {
     Info &in = info_[n];
     if (!in.has_shapes) {
-      in.shapes = pool_.allocate(room);
+      in.shapes = pool_.allocate(1);
       in.has_shapes = true;
     }
     pool_.push_back(in.shapes, std::forward<V>(shape));
