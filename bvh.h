@@ -18,8 +18,11 @@
 // large scenes, the same tree whatever their number); insert O(log n) amortised,
 // including the partial rebuilds that keep the tree balanced under any
 // insertion order; collision O(log n + shapes whose boxes touch the probe);
-// iteration O(1) amortised per step. Copy, destruction and every traversal
-// are iterative, so no input can overflow the stack.
+// iteration O(1) amortised per step; update(handle, moved) O(depth) while
+// the shape stays inside its leaf's box (set_margin makes those boxes fat),
+// else an erase and an insert; nearest(p, k) O(log n + k) typically. Copy,
+// destruction and every traversal are iterative, so no input can overflow
+// the stack.
 //
 // Where to look: the build rule is `CourseRule` (`SahRule` the alternative),
 // which plugs into the one build loop `build_top_down`; the insertion
@@ -649,7 +652,9 @@ template <class X> struct Scratch {
 /// indices, so a query decides all three children from one line; a leaf's
 /// pool slot and shape count. `info_` holds the rest: the exact double box,
 /// parent, depth, shape count and, for leaves, the slot that owns the
-/// shapes. The shapes themselves live in one pool (bvh_detail::LeafPool).
+/// shapes. The shapes themselves live in one pool (bvh_detail::LeafPool),
+/// each with its handle's id beside it; `loc_` maps an id back to its leaf
+/// and position, and every change to a leaf rewrites the entries it moves.
 template <class T> class BVH {
   using Box = bvh_detail::Box;
   using Probe = bvh_detail::Probe;
