@@ -1964,20 +1964,21 @@ private:
       clear_nodes();
       return;
     }
-    // 1. Refit, bottom-up; note the ancestors (leaf's parent first).
-    std::vector<int> up;
+    // 1. Refit, bottom-up (above the first box that does not change, only
+    // the counts do), and 2. find the node to mend on the way.
+    int mend = shapes_of(leaf).empty() ? info_[leaf].parent : -1;
+    bool refit = true;
     for (int n = leaf; n >= 0; n = info_[n].parent) {
       Info &in = info_[n];
       --in.count;
-      const Box box = fitted_box(n);
-      in.box = box;
-      if (in.parent >= 0 && in.count != 0) set_child_box(in.parent, in.slot, box);
-      if (n != leaf) up.push_back(n);
+      if (refit) {
+        const Box box = fitted_box(n);
+        refit = box != in.box;
+        in.box = box;
+        if (refit && in.parent >= 0 && in.count != 0) set_child_box(in.parent, in.slot, box);
+      }
+      if (n != leaf && in.count <= std::size_t(split_threshold_)) mend = n; // the highest wins
     }
-    // 2. Structure.
-    int mend = shapes_of(leaf).empty() ? info_[leaf].parent : -1;
-    for (int a : up)
-      if (info_[a].count <= std::size_t(split_threshold_)) mend = a;
     if (mend >= 0) rebuild(mend, true);
     // 3. Balance: the highest lopsided ancestor of what changed.
     int scapegoat = -1;
