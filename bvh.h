@@ -1253,6 +1253,13 @@ public:
     using Found = std::pair<double, std::uint32_t>; // (distance, id): the order of the answer
     std::vector<Found> found; // a max-heap of the best min(k, seen) so far
     found.reserve(std::min(k, size_) + 1);
+    // Past this squared distance nothing can enter the answer (+inf until
+    // k shapes are found; a relative margin covers the rounding of squares).
+    auto bound = [&] {
+      if (found.size() < k) return std::numeric_limits<double>::infinity();
+      const double worst = found.front().first;
+      return worst * worst * (1 + 1e-9) + 1e-300;
+    };
     using Entry = std::pair<double, int>; // (squared box distance, node)
     std::vector<Entry> heap;
     heap.reserve(64);
@@ -1261,17 +1268,18 @@ public:
       std::pop_heap(heap.begin(), heap.end(), std::greater<Entry>());
       const Entry e = heap.back();
       heap.pop_back();
-      if (found.size() == k) {
-        // (a relative margin covers the rounding of the squared bound)
-        const double worst = found.front().first;
-        if (e.first > worst * worst * (1 + 1e-9) + 1e-300) break;
-      }
+      if (e.first > bound()) break;
       const Node &node = nodes_[e.second];
       if (node.num_children == 0) {
-        const bvh_detail::Span<const T> v = shapes_of(e.second);
-        const std::uint32_t *ids = pool_.ids(info_[e.second].shapes);
-        for (std::size_t i = 0; i < v.size(); ++i) {
-          const Found f{distance(p, v[i]), ids[i]};
+        // The leaf's slot from its hot node; the ids only once a shape is
+        // near enough to need its tie-break.
+        const T *v = pool_.data(leaf_slot(node));
+        const std::uint32_t *ids = nullptr;
+        for (std::int32_t i = 0; i < node.child[2]; ++i) {
+          const double d = distance(p, v[i]);
+          if (found.size() == k && d > found.front().first) continue;
+          if (!ids) ids = pool_.ids(leaf_slot(node));
+          const Found f{d, ids[i]};
           if (found.size() < k) {
             found.push_back(f);
             std::push_heap(found.begin(), found.end());
@@ -1283,8 +1291,11 @@ public:
         }
         continue;
       }
+      const double limit = bound();
       for (int c = 0; c < node.num_children; ++c) {
-        heap.push_back({box_key(node, c), node.child[c]});
+        const double key = box_key(node, c);
+        if (key > limit) continue;
+        heap.push_back({key, node.child[c]});
         std::push_heap(heap.begin(), heap.end(), std::greater<Entry>());
       }
     }
