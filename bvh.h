@@ -613,11 +613,9 @@ template <class X> struct Scratch {
 /// `nodes_` holds what queries read, 64 bytes a node (one cache line): an
 /// inner node's children's boxes, in float rounded outwards, and their
 /// indices, so a query decides all three children from one line; a leaf's
-/// pool slot, shape count and its first three shapes' float boxes, so a
-/// query rejects those shapes from that line too. `info_` holds the rest:
-/// the exact double box, parent, depth, shape count and, for leaves, the
-/// slot that owns the shapes. The shapes themselves live in one pool
-/// (bvh_detail::LeafPool).
+/// pool slot and shape count. `info_` holds the rest: the exact double box,
+/// parent, depth, shape count and, for leaves, the slot that owns the
+/// shapes. The shapes themselves live in one pool (bvh_detail::LeafPool).
 template <class T> class BVH {
   using Box = bvh_detail::Box;
 
@@ -901,10 +899,9 @@ public:
   }
 
   /// True iff some stored shape intersects `shape` (touching counts).
-  /// Subtrees and stored shapes whose box misses the shape's box are never
-  /// visited; the final test is T's intersect() (for this project's shapes,
-  /// intersect.h's exact predicate; on the course's server, the course's
-  /// own).
+  /// Subtrees whose box misses the shape's box are never visited; the final
+  /// test is T's intersect() (for this project's shapes, intersect.h's
+  /// exact predicate; on the course's server, the course's own).
   bool collision(const T &shape) const {
     if (root_ < 0) return false;
     const Box box = bvh_detail::box_of(shape);
@@ -914,14 +911,9 @@ public:
     return !walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
-        // The exact predicate only where a shape's box meets the probe's:
-        // a leaf that rejects them all is decided from its Node.
-        const std::int32_t count = node.child[2];
-        const unsigned hits = shape_hits(node, probe);
-        if (hits == 0 && count <= kLeafBoxes) return 0;
         const T *s = pool_.data(leaf_slot(node));
-        for (std::int32_t i = 0; i < count; ++i)
-          if ((i >= kLeafBoxes || (hits >> i & 1u)) && intersect(s[i], shape)) return kStop;
+        for (std::int32_t i = 0; i < node.child[2]; ++i)
+          if (intersect(s[i], shape)) return kStop;
         return 0;
       }
       unsigned hits, near;
@@ -1174,7 +1166,10 @@ public:
         if (in.depth != info_[in.parent].depth + 1) ok = fail(n, "depth is not parent's + 1");
         if (in.slot < 0 || in.slot >= p.num_children || p.child[in.slot] != n)
           ok = fail(n, "parent does not list it in its slot");
-        else if (!has_float_box(p, in.slot, in.box))
+        else if (p.lo_x[in.slot] != bvh_detail::float_down(in.box.x0) ||
+                 p.lo_y[in.slot] != bvh_detail::float_down(in.box.y0) ||
+                 p.hi_x[in.slot] != bvh_detail::float_up(in.box.x1) ||
+                 p.hi_y[in.slot] != bvh_detail::float_up(in.box.y1))
           ok = fail(n, "parent's float box for it is not its box rounded outwards");
       }
       if (depth_limit_ != unlimited && in.depth > depth_limit_) ok = fail(n, "deeper than depth_limit");
@@ -1184,9 +1179,6 @@ public:
         if (node.child[0] != std::int32_t(in.shapes.index) || node.child[1] != std::int32_t(in.shapes.cls) ||
             node.child[2] != std::int32_t(shapes.size()))
           ok = fail(n, "leaf's hot record disagrees with its slot");
-        for (std::size_t i = 0; i < shapes.size() && i < std::size_t(kLeafBoxes); ++i)
-          if (!has_float_box(node, int(i), bvh_detail::box_of(shapes[i])))
-            ok = fail(n, "leaf's float box of shape " + std::to_string(i) + " is not its box rounded outwards");
         if (int(shapes.size()) > split_threshold_ && may_split_at(in.depth))
           ok = fail(n, "leaf over split_threshold above depth_limit");
         for (const T &s : shapes) tight.extend(bvh_detail::box_of(s));
@@ -1223,18 +1215,13 @@ private:
   static constexpr double kCanvasArea = 1000.0 * 1000.0;
 
   struct Node { // hot: all a query reads
-    // Boxes in float, rounded outwards: an inner node's children's; a
-    // leaf's first kLeafBoxes shapes', so that a probe rejects them without
-    // reading the pool.
-    float lo_x[3], lo_y[3], hi_x[3], hi_y[3];
+    float lo_x[3], lo_y[3], hi_x[3], hi_y[3]; // children's boxes, rounded outwards
     // Inner node: the children. Leaf: where its shapes are, copied from its
     // Info by sync_leaf (slot index, slot class, shape count), so that a
     // query reaches a leaf's shapes without reading the cold Info.
     std::int32_t child[3];
     std::int32_t num_children; // 0: leaf
   };
-  /// Shapes of a leaf whose boxes its Node holds (the first ones).
-  static constexpr std::int32_t kLeafBoxes = 3;
   /// The pool slot of leaf `node` (sync_leaf keeps it).
   static typename bvh_detail::LeafPool<T>::Slot leaf_slot(const Node &node) {
     return {std::uint32_t(node.child[0]), std::uint32_t(node.child[1])};
@@ -1268,20 +1255,15 @@ private:
       in.has_shapes = true;
     }
     pool_.push_back(in.shapes, std::forward<V>(shape));
-    sync_leaf(n, pool_.size(in.shapes) - 1);
+    sync_leaf(n);
   }
-  /// Copies leaf n's slot and count, and its first shapes' boxes, into its
-  /// hot Node: called after every change to a leaf's shapes, with `from`
-  /// the first shape that changed (the boxes before it are kept).
-  void sync_leaf(int n, std::size_t from = 0) {
+  /// Copies leaf n's slot and count into its hot Node.
+  void sync_leaf(int n) {
     const Info &in = info_[n];
     Node &node = nodes_[n];
     node.child[0] = in.has_shapes ? std::int32_t(in.shapes.index) : 0;
     node.child[1] = in.has_shapes ? std::int32_t(in.shapes.cls) : 0;
     node.child[2] = in.has_shapes ? std::int32_t(pool_.size(in.shapes)) : 0;
-    const std::size_t boxed = std::size_t(std::min(node.child[2], kLeafBoxes));
-    for (std::size_t i = from; i < boxed; ++i)
-      set_float_box(node, int(i), bvh_detail::box_of(pool_.data(in.shapes)[i]));
   }
   /// Gives leaf n (holding no shapes) the rule's items [begin, end), moved,
   /// in one slot of their size.
@@ -1339,20 +1321,14 @@ private:
     free_.push_back(n);
   }
 
-  void set_child_box(int parent, int slot, const Box &box) { set_float_box(nodes_[parent], slot, box); }
-  /// Box i of `node` (a child's or a leaf's shape's) := `box` rounded outwards.
-  static void set_float_box(Node &node, int i, const Box &box) {
+  void set_child_box(int parent, int slot, const Box &box) {
+    Node &p = nodes_[parent];
     float f[4];
     bvh_detail::round_out(box, f);
-    node.lo_x[i] = f[0];
-    node.lo_y[i] = f[1];
-    node.hi_x[i] = f[2];
-    node.hi_y[i] = f[3];
-  }
-  /// True when box i of `node` is `box` rounded outwards.
-  static bool has_float_box(const Node &node, int i, const Box &box) {
-    return node.lo_x[i] == bvh_detail::float_down(box.x0) && node.lo_y[i] == bvh_detail::float_down(box.y0) &&
-           node.hi_x[i] == bvh_detail::float_up(box.x1) && node.hi_y[i] == bvh_detail::float_up(box.y1);
+    p.lo_x[slot] = f[0];
+    p.lo_y[slot] = f[1];
+    p.hi_x[slot] = f[2];
+    p.hi_y[slot] = f[3];
   }
 
   struct Probe { // a query box rounded outwards to float, and its centre
@@ -1382,17 +1358,7 @@ private:
   /// reads the next field of the node and is masked off); W1's rejects spend
   /// most of their instructions here. BVH_NO_SIMD forces the scalar path.
   static void child_masks(const Node &node, const Probe &p, unsigned &hits, unsigned &near) {
-    box_masks(node, p, (1u << node.num_children) - 1, hits, near);
-  }
-  /// For leaf `node`: bit i is set when the float box of its shape i (i <
-  /// kLeafBoxes) meets the probe's box. Shapes past kLeafBoxes have no bit.
-  static unsigned shape_hits(const Node &node, const Probe &p) {
-    unsigned hits, near;
-    box_masks(node, p, (1u << std::min(node.child[2], kLeafBoxes)) - 1, hits, near);
-    return hits;
-  }
-  /// child_masks for the boxes of `node` picked by the bits of `live`.
-  static void box_masks(const Node &node, const Probe &p, unsigned live, unsigned &hits, unsigned &near) {
+    const unsigned live = (1u << node.num_children) - 1;
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
     const __m128 lx = _mm_loadu_ps(node.lo_x), ly = _mm_loadu_ps(node.lo_y);
     const __m128 hx = _mm_loadu_ps(node.hi_x), hy = _mm_loadu_ps(node.hi_y);
@@ -1490,14 +1456,8 @@ private:
     walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
-        // The float boxes only reject; the exact box decides.
-        const std::int32_t count = node.child[2];
-        const unsigned hits = shape_hits(node, probe);
-        if (hits == 0 && count <= kLeafBoxes) return 0;
-        const T *s = pool_.data(leaf_slot(node));
-        for (std::int32_t i = 0; i < count; ++i)
-          if ((i >= kLeafBoxes || (hits >> i & 1u)) && bvh_detail::box_of(s[i]).overlaps(box) && !visit(s[i]))
-            return kStop;
+        for (const T &s : shapes_of(n))
+          if (bvh_detail::box_of(s).overlaps(box) && !visit(s)) return kStop;
         return 0;
       }
       unsigned hits, near;
@@ -1609,7 +1569,7 @@ private:
   /// m) and, as for inserts, needs Omega(m) erases below the node to recur.
   void erase_at(int leaf, std::size_t index) {
     pool_.erase(info_[leaf].shapes, index);
-    sync_leaf(leaf, index);
+    sync_leaf(leaf);
     if (--size_ == 0) {
       clear();
       return;
