@@ -300,6 +300,38 @@ struct Box {
   friend bool operator!=(const Box &a, const Box &b) { return !(a == b); }
 };
 
+/// {float_down(b.x0), float_down(b.y0), float_up(b.x1), float_up(b.y1)}
+/// into out: `b` rounded outwards to float.
+/// With SSE2 the four at once and without branches: every box a node
+/// stores and every query's box is rounded, and the scalar steps' branches
+/// go either way at random.
+inline void round_out(const Box &b, float out[4]) {
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+  const __m128d lo = _mm_set_pd(b.y0, b.x0), hi = _mm_set_pd(b.y1, b.x1);
+  const __m128 f = _mm_movelh_ps(_mm_cvtpd_ps(lo), _mm_cvtpd_ps(hi));
+  // Lanes whose conversion went the wrong way (NaN never does).
+  const __m128d wrong_lo = _mm_cmpgt_pd(_mm_cvtps_pd(f), lo);
+  const __m128d wrong_hi = _mm_cmplt_pd(_mm_cvtps_pd(_mm_movehl_ps(f, f)), hi);
+  const __m128i wrong = _mm_castps_si128(
+      _mm_shuffle_ps(_mm_castpd_ps(wrong_lo), _mm_castpd_ps(wrong_hi), _MM_SHUFFLE(2, 0, 2, 0)));
+  // float_step on the bit patterns: +1 (away from zero) when the float's
+  // sign is the direction's, -1 otherwise; from +-0 to the smallest
+  // subnormal of the direction's sign.
+  const __m128i bits = _mm_castps_si128(f), down = _mm_set_epi32(0, 0, -1, -1);
+  const __m128i one = _mm_set1_epi32(1);
+  const __m128i stepped = _mm_add_epi32(bits, _mm_or_si128(_mm_xor_si128(_mm_srai_epi32(bits, 31), down), one));
+  const __m128i zero = _mm_castps_si128(_mm_cmpeq_ps(f, _mm_setzero_ps()));
+  const __m128i smallest = _mm_or_si128(_mm_slli_epi32(down, 31), one);
+  const __m128i step = _mm_or_si128(_mm_and_si128(zero, smallest), _mm_andnot_si128(zero, stepped));
+  _mm_storeu_ps(out, _mm_castsi128_ps(_mm_or_si128(_mm_and_si128(wrong, step), _mm_andnot_si128(wrong, bits))));
+#else
+  out[0] = float_down(b.x0);
+  out[1] = float_down(b.y0);
+  out[2] = float_up(b.x1);
+  out[3] = float_up(b.y1);
+#endif
+}
+
 /// A point in double, from anything with x and y.
 struct XY {
   double x, y;
@@ -585,9 +617,9 @@ private:
 struct Probe {
   /// The probe of `box`.
   static Probe around(const Box &box) {
-    const float lo_x = float_down(box.x0), lo_y = float_down(box.y0);
-    const float hi_x = float_up(box.x1), hi_y = float_up(box.y1);
-    return Probe(lo_x, lo_y, hi_x, hi_y, 0.5f * (lo_x + hi_x), 0.5f * (lo_y + hi_y));
+    float f[4];
+    round_out(box, f);
+    return Probe(f[0], f[1], f[2], f[3], 0.5f * (f[0] + f[2]), 0.5f * (f[1] + f[3]));
   }
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
   // Broadcast to 4 lanes once per query, not once per node.
@@ -1741,10 +1773,12 @@ private:
 
   void set_child_box(int parent, int slot, const Box &box) {
     Node &p = nodes_[parent];
-    p.lo_x[slot] = bvh_detail::float_down(box.x0);
-    p.lo_y[slot] = bvh_detail::float_down(box.y0);
-    p.hi_x[slot] = bvh_detail::float_up(box.x1);
-    p.hi_y[slot] = bvh_detail::float_up(box.y1);
+    float f[4];
+    bvh_detail::round_out(box, f);
+    p.lo_x[slot] = f[0];
+    p.lo_y[slot] = f[1];
+    p.hi_x[slot] = f[2];
+    p.hi_y[slot] = f[3];
   }
 
 

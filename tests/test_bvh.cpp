@@ -9,7 +9,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <iomanip>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <string>
@@ -463,6 +465,30 @@ TEST(depth_limit_leaves_grow_without_splitting) {
   CHECK(tree.validate());
   CHECK(tree.height() <= 1);
   CHECK_EQ(tree.size(), std::size_t(100));
+}
+
+// round_out (SSE2 unless BVH_NO_SIMD) against float_down and float_up, bit
+// for bit: zeros, subnormals, the float range's ends, infinities, NaN, and
+// random doubles of every magnitude and sign.
+TEST(round_out_equals_float_down_and_float_up) {
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<double> v = {0.0, -0.0, 1e-300, -1e-300, 1e-46, -1e-46, 1.5e-45, -1.5e-45, 3e-39, -3e-39, 0.1, -0.1, 1.0,
+                           -1.0, 16777217.0, -16777217.0, 3.4028235e38, -3.4028235e38, 3.5e38, -3.5e38, 1e300, -1e300,
+                           inf, -inf, std::numeric_limits<double>::quiet_NaN(),
+                           std::numeric_limits<double>::denorm_min(), -std::numeric_limits<double>::denorm_min()};
+  std::mt19937_64 rng(base_seed());
+  for (int i = 0; i < scaled(20000); ++i)
+    v.push_back(std::ldexp(std::uniform_real_distribution<double>(-1, 1)(rng), int(rng() % 300) - 150));
+  int wrong = 0;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    const double a = v[i], b = v[(i * 7 + 3) % v.size()], c = v[(i * 13 + 5) % v.size()], d = v[(i * 17 + 1) % v.size()];
+    float got[4];
+    bvh_detail::round_out(bvh_detail::Box{a, b, c, d}, got);
+    const float want[4] = {bvh_detail::float_down(a), bvh_detail::float_down(b), bvh_detail::float_up(c),
+                           bvh_detail::float_up(d)};
+    if (std::memcmp(got, want, sizeof got) != 0) ++wrong;
+  }
+  CHECK_EQ(wrong, 0);
 }
 
 // The node arrays against std::vector as the model: random appends, writes
