@@ -48,6 +48,7 @@
 #include <memory>
 #include <mutex>
 #include <queue>
+#include <stdexcept>
 #include <string>
 #include <system_error>
 #include <thread>
@@ -257,6 +258,8 @@ struct Box {
   bool overlaps(const Box &o) const { return x0 <= o.x1 && o.x0 <= x1 && y0 <= o.y1 && o.y0 <= y1; }
   /// True when `o` lies inside this box, boundaries included.
   bool contains(const Box &o) const { return x0 <= o.x0 && y0 <= o.y0 && o.x1 <= x1 && o.y1 <= y1; }
+  /// This box with every side pushed out by m >= 0 (an empty box stays empty).
+  Box grown(double m) const { return empty() ? *this : Box{x0 - m, y0 - m, x1 + m, y1 + m}; }
   /// Grows to include `o` (an empty `o` changes nothing).
   void extend(const Box &o) {
     x0 = std::min(x0, o.x0);
@@ -398,7 +401,8 @@ template <class F> void parallel_for(std::size_t count, unsigned threads, F &&f)
 /// what is stored and there is no allocation per leaf; a bulk build's
 /// leaves of one class lie side by side in leaf order. Only a slot's first
 /// size() elements are constructed, so T needs no default constructor.
-/// Slots given back are reused first. Copies are deep.
+/// Beside each shape the pool keeps its id (the tree's handle for it),
+/// moved with it. Slots given back are reused first. Copies are deep.
 template <class T> class LeafPool {
 public:
   /// A slot: its class (capacity 1 << cls) and its index in that class.
@@ -420,26 +424,33 @@ public:
   /// The slot's first shape.
   T *data(Slot s) { return classes_[s.cls].data(s.index); }
   const T *data(Slot s) const { return classes_[s.cls].data(s.index); }
+  /// The ids of the slot's shapes, in the same order.
+  std::uint32_t *ids(Slot s) { return classes_[s.cls].ids(s.index); }
+  const std::uint32_t *ids(Slot s) const { return classes_[s.cls].ids(s.index); }
   /// The number of shapes in the slot.
   std::size_t size(Slot s) const { return classes_[s.cls].sizes[s.index]; }
 
-  /// Appends a shape; a full slot first moves to one twice as large (`s`
-  /// then names the new slot).
-  template <class V> void push_back(Slot &s, V &&shape) {
+  /// Appends a shape with its id; a full slot first moves to one twice as
+  /// large (`s` then names the new slot).
+  template <class V> void push_back(Slot &s, V &&shape, std::uint32_t id) {
     if (size(s) == (std::size_t(1) << s.cls)) {
       const Slot bigger = allocate(std::size_t(2) << s.cls);
       T *from = data(s);
-      for (std::size_t i = 0, n = size(s); i < n; ++i) classes_[bigger.cls].construct(bigger.index, std::move(from[i]));
+      const std::uint32_t *from_ids = ids(s);
+      for (std::size_t i = 0, n = size(s); i < n; ++i)
+        classes_[bigger.cls].construct(bigger.index, std::move(from[i]), from_ids[i]);
       release(s);
       s = bigger;
     }
-    classes_[s.cls].construct(s.index, std::forward<V>(shape));
+    classes_[s.cls].construct(s.index, std::forward<V>(shape), id);
   }
   /// Removes shape i, keeping the order of the others.
   void erase(Slot s, std::size_t i) {
     T *d = data(s);
+    std::uint32_t *id = ids(s);
     const std::size_t n = size(s);
     std::move(d + i + 1, d + n, d + i);
+    std::move(id + i + 1, id + n, id + i);
     d[n - 1].~T();
     --classes_[s.cls].sizes[s.index];
   }
@@ -461,9 +472,9 @@ private:
       sizes.reserve(o.sizes.size());
       try {
         for (std::uint32_t i = 0; i < o.sizes.size(); ++i) {
-          if (i % per_block_ == 0) blocks_.push_back(std::allocator<T>().allocate(per_block_ * capacity_));
+          if (i % per_block_ == 0) add_block();
           sizes.push_back(0);
-          for (std::uint32_t j = 0; j < o.sizes[i]; ++j) construct(i, o.data(i)[j]);
+          for (std::uint32_t j = 0; j < o.sizes[i]; ++j) construct(i, o.data(i)[j], o.ids(i)[j]);
         }
       } catch (...) {
         destroy();
@@ -472,11 +483,12 @@ private:
     }
     Class(Class &&o) noexcept
         : cls_(o.cls_), capacity_(o.capacity_), block_shift_(o.block_shift_), per_block_(o.per_block_),
-          sizes(std::move(o.sizes)), free_slots(std::move(o.free_slots)),
-          blocks_(std::move(o.blocks_)) {
+          sizes(std::move(o.sizes)), free_slots(std::move(o.free_slots)), blocks_(std::move(o.blocks_)),
+          id_blocks_(std::move(o.id_blocks_)) {
       o.sizes.clear();
       o.free_slots.clear();
       o.blocks_.clear();
+      o.id_blocks_.clear();
     }
     Class &operator=(Class o) noexcept { // copy or move, then swap
       std::swap(cls_, o.cls_);
@@ -486,6 +498,7 @@ private:
       sizes.swap(o.sizes);
       free_slots.swap(o.free_slots);
       blocks_.swap(o.blocks_);
+      id_blocks_.swap(o.id_blocks_);
       return *this;
     }
     ~Class() { destroy(); }
@@ -497,7 +510,7 @@ private:
         return i;
       }
       const std::uint32_t i = std::uint32_t(sizes.size());
-      if (i % per_block_ == 0) blocks_.push_back(std::allocator<T>().allocate(per_block_ * capacity_));
+      if (i % per_block_ == 0) add_block();
       sizes.push_back(0);
       return i;
     }
@@ -507,9 +520,16 @@ private:
       sizes[i] = 0;
       free_slots.push_back(i);
     }
-    template <class V> void construct(std::uint32_t i, V &&v) {
+    template <class V> void construct(std::uint32_t i, V &&v, std::uint32_t id) {
       ::new (static_cast<void *>(data(i) + sizes[i])) T(std::forward<V>(v));
+      ids(i)[sizes[i]] = id;
       ++sizes[i];
+    }
+    std::uint32_t *ids(std::uint32_t i) {
+      return id_blocks_[i >> block_shift_] + (std::size_t(i & (per_block_ - 1)) << cls_);
+    }
+    const std::uint32_t *ids(std::uint32_t i) const {
+      return id_blocks_[i >> block_shift_] + (std::size_t(i & (per_block_ - 1)) << cls_);
     }
     T *data(std::uint32_t i) { return blocks_[i >> block_shift_] + (std::size_t(i & (per_block_ - 1)) << cls_); }
     const T *data(std::uint32_t i) const {
@@ -528,11 +548,27 @@ private:
 
   private:
     std::vector<T *> blocks_;
+    std::vector<std::uint32_t *> id_blocks_; // parallel to blocks_
+    void add_block() {
+      const std::size_t n = per_block_ * capacity_;
+      blocks_.reserve(blocks_.size() + 1);
+      id_blocks_.reserve(id_blocks_.size() + 1);
+      T *b = std::allocator<T>().allocate(n);
+      try {
+        id_blocks_.push_back(std::allocator<std::uint32_t>().allocate(n));
+      } catch (...) {
+        std::allocator<T>().deallocate(b, n);
+        throw;
+      }
+      blocks_.push_back(b);
+    }
     void destroy() {
       for (std::uint32_t i = 0; i < sizes.size(); ++i)
         for (std::uint32_t j = 0; j < sizes[i]; ++j) data(i)[j].~T();
       for (T *b : blocks_) std::allocator<T>().deallocate(b, per_block_ * capacity_);
+      for (std::uint32_t *b : id_blocks_) std::allocator<std::uint32_t>().deallocate(b, per_block_ * capacity_);
       blocks_.clear();
+      id_blocks_.clear();
       sizes.clear();
     }
   };
@@ -549,6 +585,13 @@ template <class X> struct Span {
   std::size_t size() const { return count; }
   bool empty() const { return count == 0; }
   X &operator[](std::size_t i) const { return first[i]; }
+};
+
+/// A shape on its way from one leaf to others (a split, a rebuild), with its
+/// id.
+template <class T> struct Tagged {
+  T shape;
+  std::uint32_t id;
 };
 
 /// Working memory reused from one build to the next. Copies of a tree do
@@ -610,9 +653,10 @@ public:
   /// Takes `other`'s shapes; `other` is left empty (same parameters).
   BVH(BVH &&other) noexcept
       : nodes_(std::move(other.nodes_)), info_(std::move(other.info_)), free_(std::move(other.free_)),
-        pool_(std::move(other.pool_)),
+        pool_(std::move(other.pool_)), loc_(std::move(other.loc_)), free_ids_(std::move(other.free_ids_)),
         root_(other.root_), size_(other.size_), split_threshold_(other.split_threshold_),
-        depth_limit_(other.depth_limit_), build_rule_(other.build_rule_), build_threads_(other.build_threads_) {
+        depth_limit_(other.depth_limit_), build_rule_(other.build_rule_), build_threads_(other.build_threads_),
+        margin_(other.margin_) {
     other.clear();
   }
   /// Takes `other`'s shapes and parameters; `other` is left empty.
@@ -622,17 +666,30 @@ public:
       info_ = std::move(other.info_);
       free_ = std::move(other.free_);
       pool_ = std::move(other.pool_);
+      loc_ = std::move(other.loc_);
+      free_ids_ = std::move(other.free_ids_);
       root_ = other.root_;
       size_ = other.size_;
       split_threshold_ = other.split_threshold_;
       depth_limit_ = other.depth_limit_;
       build_rule_ = other.build_rule_;
       build_threads_ = other.build_threads_;
+      margin_ = other.margin_;
       other.clear();
     }
     return *this;
   }
   ~BVH() = default;
+
+  /// A stored shape's name: given by insert() (construct() gives elements[i]
+  /// the id i), valid until that shape is erased whatever else is
+  /// inserted, erased, updated or rebuilt. Like Box2D's proxy ids, the id
+  /// of an erased shape may be given again by a later insert().
+  struct handle {
+    std::uint32_t id;
+    friend bool operator==(handle a, handle b) { return a.id == b.id; }
+    friend bool operator!=(handle a, handle b) { return a.id != b.id; }
+  };
 
   /// A bidirectional iterator over every stored shape, leaf by leaf from
   /// left to right. Shapes are read-only through it (changing one could
@@ -655,6 +712,11 @@ public:
     }
     /// Member access on the shape it points to.
     pointer operator->() const { return &**this; }
+    /// The handle of the shape it points to (not end()).
+    handle id() const {
+      BVH_ASSERT(tree_ != nullptr && leaf_ >= 0, "id() of end() or a singular iterator");
+      return handle{tree_->pool_.ids(tree_->info_[leaf_].shapes)[index_]};
+    }
 
     /// Next shape (end() after the last; not from end()).
     iterator &operator++() {
@@ -742,14 +804,11 @@ public:
   /// The build rule in use.
   BuildRule build_rule() const { return build_rule_; }
 
-  /// Removes every shape.
+  /// Removes every shape; every handle becomes invalid.
   void clear() {
-    nodes_.clear();
-    info_.clear();
-    free_.clear();
-    pool_ = bvh_detail::LeafPool<T>();
-    root_ = -1;
-    size_ = 0;
+    clear_nodes();
+    loc_.clear();
+    free_ids_.clear();
   }
 
   /// Replaces the contents with `elements`, built top-down by the course's
@@ -757,10 +816,16 @@ public:
   void construct(const std::vector<T> &elements) {
     clear();
     if (elements.empty()) return;
+    if (elements.size() > std::size_t(std::numeric_limits<std::uint32_t>::max()))
+      throw std::length_error("BVH::construct: more shapes than 32-bit handles can name");
     size_ = elements.size();
+    loc_.resize(size_);
     if (build_rule_ == BuildRule::sah) {
+      std::vector<Tagged> tagged;
+      tagged.reserve(size_);
+      for (std::size_t i = 0; i < size_; ++i) tagged.push_back(Tagged{elements[i], std::uint32_t(i)});
       root_ = new_node(0, -1, 0);
-      build(root_, elements);
+      build(root_, tagged);
       return;
     }
     // The course rule's tree shape depends on counts alone, so every node
@@ -774,7 +839,7 @@ public:
       info_.resize(total);
       root_ = 0;
       reset_node(root_, 0, -1, 0);
-      CourseRule rule(fill_items(elements));
+      CourseRule rule(fill_items(elements.size(), [&](std::size_t i) -> const T & { return elements[i]; }), nullptr);
       using Task = BuildTask<typename CourseRule::State>;
       std::vector<Task> tasks{{root_, 0, size_, 1, CourseRule::root_state()}};
       const unsigned threads = build_threads();
@@ -829,14 +894,89 @@ public:
   /// that leaf, split the leaf by the build rule when it holds more than
   /// split_threshold shapes above depth_limit, then rebuild the highest
   /// subtree on the path that has grown lopsided (rebalance_path).
-  void insert(const T &shape) {
-    const Box box = bvh_detail::box_of(shape);
+  /// Returns the new shape's handle.
+  handle insert(const T &shape) {
+    const std::uint32_t id = new_id();
+    try {
+      insert_with_id(shape, id);
+    } catch (...) {
+      free_id(id);
+      throw;
+    }
+    return handle{id};
+  }
+
+  /// The stored shape named by `h` (h must be valid: see contains()).
+  const T &get(handle h) const {
+    BVH_ASSERT(contains(h), "get() with a handle that names no stored shape");
+    return shapes_of(loc_[h.id].leaf)[loc_[h.id].index];
+  }
+  /// True when `h` names a stored shape.
+  bool contains(handle h) const { return h.id < loc_.size() && loc_[h.id].leaf >= 0; }
+  /// An iterator to the shape named by `h` (valid).
+  iterator find(handle h) const {
+    BVH_ASSERT(contains(h), "find() with a handle that names no stored shape");
+    return iterator(this, loc_[h.id].leaf, loc_[h.id].index);
+  }
+
+  /// Removes the shape named by `h` (valid); `h` becomes invalid, as do
+  /// iterators.
+  void erase(handle h) {
+    BVH_ASSERT(contains(h), "erase() with a handle that names no stored shape");
+    const Loc at = loc_[h.id];
+    erase_at(at.leaf, at.index);
+    free_id(h.id);
+  }
+
+  /// The shape named by `h` (valid) becomes `moved`; its handle stays.
+  /// When moved's box lies inside its leaf's box, the shape is replaced in
+  /// place and, with margin 0, the boxes above are shrunk to fit again:
+  /// O(depth), and every iterator stays valid. Otherwise the shape is
+  /// erased and inserted again, as erase(h) and insert() would (iterators
+  /// are invalidated), so the tree keeps insert()'s quality under any run
+  /// of moves. A margin (set_margin) makes leaves' boxes larger than their
+  /// shapes, so that small moves stay inside them.
+  void update(handle h, const T &moved) {
+    BVH_ASSERT(contains(h), "update() with a handle that names no stored shape");
+    const Loc at = loc_[h.id];
+    if (info_[at.leaf].box.contains(bvh_detail::box_of(moved))) {
+      shapes_of(at.leaf)[at.index] = moved;
+      if (margin_ == 0) refit_up(at.leaf);
+      return;
+    }
+    erase_at(at.leaf, at.index);
+    insert_with_id(moved, h.id);
+  }
+
+  /// Leaves' boxes are their shapes' box grown by `m` on every side (m < 0
+  /// or NaN is taken as 0; the default is 0, the course's tight boxes):
+  /// Box2D's "fat" boxes, which let update() absorb moves smaller than m
+  /// without touching the tree, at the cost of looser boxes for queries
+  /// (and larger areas in statistics()). Every box is recomputed: O(n).
+  void set_margin(double m) {
+    margin_ = m > 0 && m < std::numeric_limits<double>::infinity() ? m : 0;
+    if (root_ < 0) return;
+    std::vector<int> order;
+    order.reserve(node_count());
+    for_each_preorder([&](int n) { order.push_back(n); });
+    for (auto it = order.rbegin(); it != order.rend(); ++it) {
+      info_[*it].box = fitted_box(*it);
+      if (info_[*it].parent >= 0) set_child_box(info_[*it].parent, info_[*it].slot, info_[*it].box);
+    }
+  }
+  /// The margin of leaves' boxes (0 unless set_margin() said otherwise).
+  double margin() const { return margin_; }
+
+private:
+  /// insert()'s work, for a shape whose id is already taken.
+  void insert_with_id(const T &shape, std::uint32_t id) {
+    const Box box = fat(bvh_detail::box_of(shape));
     ++size_;
     if (root_ < 0) {
       root_ = new_node(0, -1, 0);
       info_[root_].box = box;
       info_[root_].count = 1;
-      leaf_push(root_, shape);
+      leaf_push(root_, shape, id);
       return;
     }
     bvh_detail::IndexStack path;
@@ -855,16 +995,18 @@ public:
     if (int(info_[n].count) > split_threshold_ && may_split_at(info_[n].depth)) {
       // The leaf splits: its shapes and the new one go straight to the build
       // (pushing first could move the slot to a larger class for nothing).
-      std::vector<T> shapes;
+      std::vector<Tagged> shapes;
       shapes.reserve(info_[n].count);
       take_shapes(n, shapes);
-      shapes.push_back(shape);
+      shapes.push_back(Tagged{shape, id});
       build(n, shapes);
     } else {
-      leaf_push(n, shape);
+      leaf_push(n, shape, id);
     }
     rebalance_path(path, n);
   }
+
+public:
 
   /// True iff some stored shape intersects `shape` (touching counts).
   /// Subtrees whose box misses the shape's box are never visited; the final
@@ -903,7 +1045,9 @@ public:
                    pos.index_ < shapes_of(pos.leaf_).size(),
                "erase() with an invalidated iterator");
     const std::size_t rank = rank_of(pos);
+    const std::uint32_t id = pool_.ids(info_[pos.leaf_].shapes)[pos.index_];
     erase_at(pos.leaf_, pos.index_);
+    free_id(id);
     return iterator_at(rank);
   }
 
@@ -916,7 +1060,9 @@ public:
     int leaf;
     std::size_t index;
     while (find_equal(value, leaf, index)) {
+      const std::uint32_t id = pool_.ids(info_[leaf].shapes)[index];
       erase_at(leaf, index);
+      free_id(id);
       ++removed;
     }
     return removed;
@@ -951,6 +1097,73 @@ public:
   const T *nearest(const Point &p, double *dist = nullptr) const {
     return best_first([&](const Box &b) { return b.distance_to(p.x, p.y); },
                       [&](const T &s) { return distance(p, s); }, dist);
+  }
+
+  /// One answer of nearest(p, k, out).
+  struct neighbor {
+    const T *shape;  ///< the stored shape (valid until the tree changes)
+    double distance; ///< distance(p, *shape): 0 when p is inside or on it
+    handle id;       ///< its handle
+  };
+
+  /// Writes to `out` (an output iterator of neighbor, e.g.
+  /// std::back_inserter(vector)) the min(k, size()) stored shapes nearest
+  /// to `p`, by increasing distance(p, shape) (as nearest(p) measures it);
+  /// among equally distant shapes the smaller handle id comes first, so the
+  /// answer is one definite list. Returns out's end. Best-first over the
+  /// nodes, nearest box first, stopping when the next box is farther than
+  /// the k-th shape found: O(log n + k) typically.
+  template <class Out> Out nearest(const Point &p, std::size_t k, Out out) const {
+    if (k == 0 || root_ < 0) return out;
+    const double px = p.x, py = p.y;
+    // Squared distance from p to child c's float box (rounded outwards, so
+    // never farther than the exact box: a valid bound).
+    auto box_key = [&](const Node &node, int c) {
+      const double dx = std::max({double(node.lo_x[c]) - px, 0.0, px - double(node.hi_x[c])});
+      const double dy = std::max({double(node.lo_y[c]) - py, 0.0, py - double(node.hi_y[c])});
+      return dx * dx + dy * dy;
+    };
+    using Found = std::pair<double, std::uint32_t>; // (distance, id): the order of the answer
+    std::vector<Found> found; // a max-heap of the best min(k, seen) so far
+    found.reserve(std::min(k, size_) + 1);
+    using Entry = std::pair<double, int>; // (squared box distance, node)
+    std::vector<Entry> heap;
+    heap.reserve(64);
+    heap.push_back({0.0, root_});
+    while (!heap.empty()) {
+      std::pop_heap(heap.begin(), heap.end(), std::greater<Entry>());
+      const Entry e = heap.back();
+      heap.pop_back();
+      if (found.size() == k) {
+        // (a relative margin covers the rounding of the squared bound)
+        const double worst = found.front().first;
+        if (e.first > worst * worst * (1 + 1e-9) + 1e-300) break;
+      }
+      const Node &node = nodes_[e.second];
+      if (node.num_children == 0) {
+        const bvh_detail::Span<const T> v = shapes_of(e.second);
+        const std::uint32_t *ids = pool_.ids(info_[e.second].shapes);
+        for (std::size_t i = 0; i < v.size(); ++i) {
+          const Found f{distance(p, v[i]), ids[i]};
+          if (found.size() < k) {
+            found.push_back(f);
+            std::push_heap(found.begin(), found.end());
+          } else if (f < found.front()) {
+            std::pop_heap(found.begin(), found.end());
+            found.back() = f;
+            std::push_heap(found.begin(), found.end());
+          }
+        }
+        continue;
+      }
+      for (int c = 0; c < node.num_children; ++c) {
+        heap.push_back({box_key(node, c), node.child[c]});
+        std::push_heap(heap.begin(), heap.end(), std::greater<Entry>());
+      }
+    }
+    std::sort_heap(found.begin(), found.end());
+    for (const Found &f : found) *out++ = neighbor{&get(handle{f.second}), f.first, handle{f.second}};
+    return out;
   }
 
   /// The first stored shape met by the ray origin + t * direction, t >= 0
@@ -1110,6 +1323,7 @@ public:
     if (root_ < 0) {
       if (size_ != 0) return fail(-1, "empty tree with size " + std::to_string(size_));
       if (node_count() != 0) return fail(-1, "empty tree with live nodes");
+      if (!loc_.empty() || !free_ids_.empty()) return fail(-1, "empty tree with ids");
       return true;
     }
     std::vector<char> is_free(nodes_.size(), 0);
@@ -1152,6 +1366,13 @@ public:
         for (const T &s : shapes) tight.extend(bvh_detail::box_of(s));
         count = shapes.size();
         counted += count;
+        const std::uint32_t *ids = shapes.empty() ? nullptr : pool_.ids(in.shapes);
+        for (std::size_t i = 0; ok && i < shapes.size(); ++i)
+          if (ids[i] >= loc_.size() || loc_[ids[i]].leaf != n || loc_[ids[i]].index != i)
+            ok = fail(n, "shape " + std::to_string(i) + "'s id does not locate it");
+        // With a margin a leaf's box may be larger than fat(tight): update()
+        // leaves it as it is while the shapes stay inside.
+        if (margin_ > 0 && in.box.contains(tight)) tight = in.box;
       } else {
         if (in.has_shapes) ok = fail(n, "inner node holds shapes");
         if (node.num_children < 2 || node.num_children > 3) ok = fail(n, "inner node without 2 or 3 children");
@@ -1168,7 +1389,26 @@ public:
     if (!ok) return false;
     if (reached + free_.size() != nodes_.size()) return fail(root_, "unreachable nodes off the free list");
     if (counted != size_) return fail(root_, "size() disagrees with the shapes stored");
+    if (loc_.size() != size_ + free_ids_.size()) return fail(-1, "ids in use and free do not add up");
+    std::vector<char> id_free(loc_.size(), 0);
+    for (std::uint32_t id : free_ids_) {
+      if (id >= loc_.size() || loc_[id].leaf != -1 || id_free[id])
+        return fail(-1, "free id " + std::to_string(id) + " is in use or listed twice");
+      id_free[id] = 1;
+    }
     return true;
+  }
+
+  /// The surface area heuristic cost that statistics() prints, unrounded:
+  /// the inner nodes' box areas plus each leaf's box area times its shape
+  /// count, in units of the 1000 x 1000 canvas (0 for an empty tree).
+  double sah_cost() const {
+    double cost = 0;
+    for_each_preorder([&](int n) {
+      const double area = info_[n].box.area() / kCanvasArea;
+      cost += nodes_[n].num_children == 0 ? area * double(info_[n].count) : area;
+    });
+    return cost;
   }
 
   /// Depth of the deepest node (0 for a single leaf or an empty tree).
@@ -1204,6 +1444,69 @@ private:
     bool has_shapes = false;                       // shapes names a slot of pool_
   };
 
+  using Tagged = bvh_detail::Tagged<T>;
+  struct Loc { // where the shape of one id is
+    std::int32_t leaf = -1; // -1: the id is free
+    std::uint32_t index = 0;
+  };
+
+  /// A free id (one given back first), its Loc not yet set.
+  std::uint32_t new_id() {
+    if (!free_ids_.empty()) {
+      const std::uint32_t id = free_ids_.back();
+      free_ids_.pop_back();
+      return id;
+    }
+    if (loc_.size() == std::size_t(std::numeric_limits<std::uint32_t>::max()))
+      throw std::length_error("BVH::insert: more shapes than 32-bit handles can name");
+    loc_.push_back(Loc{});
+    return std::uint32_t(loc_.size() - 1);
+  }
+  /// Gives `id` back; with nothing stored, forgets every id.
+  void free_id(std::uint32_t id) {
+    loc_[id].leaf = -1;
+    if (size_ == 0) {
+      loc_.clear();
+      free_ids_.clear();
+    } else {
+      free_ids_.push_back(id);
+    }
+  }
+  /// Drops every node and shape but keeps the ids (erase_at of the last
+  /// shape, which update() inserts again under its id).
+  void clear_nodes() {
+    nodes_.clear();
+    info_.clear();
+    free_.clear();
+    pool_ = bvh_detail::LeafPool<T>();
+    root_ = -1;
+    size_ = 0;
+  }
+
+  /// A leaf's box for shapes whose box is `tight`: grown by the margin.
+  Box fat(const Box &tight) const { return margin_ > 0 ? tight.grown(margin_) : tight; }
+  /// Node n's box recomputed from its shapes (leaf) or children's boxes.
+  Box fitted_box(int n) const {
+    Box box;
+    const Node &node = nodes_[n];
+    if (node.num_children == 0) {
+      for (const T &s : shapes_of(n)) box.extend(bvh_detail::box_of(s));
+      return fat(box);
+    }
+    for (int c = 0; c < node.num_children; ++c)
+      if (info_[node.child[c]].count != 0) box.extend(info_[node.child[c]].box);
+    return box;
+  }
+  /// Refits the boxes from node n up, stopping where a box is unchanged.
+  void refit_up(int n) {
+    for (; n >= 0; n = info_[n].parent) {
+      const Box box = fitted_box(n);
+      if (box == info_[n].box) return;
+      info_[n].box = box;
+      if (info_[n].parent >= 0) set_child_box(info_[n].parent, info_[n].slot, box);
+    }
+  }
+
   /// The shapes of node n (none for an inner node).
   bvh_detail::Span<const T> shapes_of(int n) const {
     const Info &in = info_[n];
@@ -1215,14 +1518,15 @@ private:
     if (!in.has_shapes) return {nullptr, 0};
     return {pool_.data(in.shapes), pool_.size(in.shapes)};
   }
-  /// Appends a shape to leaf n (giving it a slot if it has none).
-  template <class V> void leaf_push(int n, V &&shape) {
+  /// Appends a shape with its id to leaf n (giving it a slot if it has none).
+  template <class V> void leaf_push(int n, V &&shape, std::uint32_t id) {
     Info &in = info_[n];
     if (!in.has_shapes) {
       in.shapes = pool_.allocate(1);
       in.has_shapes = true;
     }
-    pool_.push_back(in.shapes, std::forward<V>(shape));
+    pool_.push_back(in.shapes, std::forward<V>(shape), id);
+    loc_[id] = Loc{n, std::uint32_t(pool_.size(in.shapes) - 1)};
     sync_leaf(n);
   }
   /// Copies leaf n's slot and count into its hot Node.
@@ -1239,12 +1543,20 @@ private:
     Info &in = info_[n];
     in.shapes = pool_.allocate(end - begin);
     in.has_shapes = true;
-    for (std::size_t i = begin; i < end; ++i) pool_.push_back(in.shapes, std::move(rule.shape(i)));
+    for (std::size_t i = begin; i < end; ++i) {
+      const std::uint32_t id = rule.id(i);
+      pool_.push_back(in.shapes, std::move(rule.shape(i)), id);
+      loc_[id] = Loc{n, std::uint32_t(i - begin)};
+    }
     sync_leaf(n);
   }
-  /// Moves leaf n's shapes to the end of `out` and gives its slot back.
-  void take_shapes(int n, std::vector<T> &out) {
-    for (T &s : shapes_of(n)) out.push_back(std::move(s));
+  /// Moves leaf n's shapes, with their ids, to the end of `out` and gives
+  /// its slot back.
+  void take_shapes(int n, std::vector<Tagged> &out) {
+    const bvh_detail::Span<T> v = shapes_of(n);
+    if (v.empty()) return;
+    const std::uint32_t *ids = pool_.ids(info_[n].shapes);
+    for (std::size_t i = 0; i < v.size(); ++i) out.push_back(Tagged{std::move(v[i]), ids[i]});
     release_shapes(n);
   }
   void release_shapes(int n) {
@@ -1536,8 +1848,12 @@ private:
   void erase_at(int leaf, std::size_t index) {
     pool_.erase(info_[leaf].shapes, index);
     sync_leaf(leaf);
+    {
+      const std::uint32_t *ids = pool_.ids(info_[leaf].shapes);
+      for (std::size_t i = index, n = pool_.size(info_[leaf].shapes); i < n; ++i) loc_[ids[i]].index = std::uint32_t(i);
+    }
     if (--size_ == 0) {
-      clear();
+      clear_nodes();
       return;
     }
     // 1. Refit, bottom-up; note the ancestors (leaf's parent first).
@@ -1545,12 +1861,7 @@ private:
     for (int n = leaf; n >= 0; n = info_[n].parent) {
       Info &in = info_[n];
       --in.count;
-      Box box;
-      if (nodes_[n].num_children == 0)
-        for (const T &s : shapes_of(n)) box.extend(bvh_detail::box_of(s));
-      else
-        for (int c = 0; c < nodes_[n].num_children; ++c)
-          if (info_[nodes_[n].child[c]].count != 0) box.extend(info_[nodes_[n].child[c]].box);
+      const Box box = fitted_box(n);
       in.box = box;
       if (in.parent >= 0 && in.count != 0) set_child_box(in.parent, in.slot, box);
       if (n != leaf) up.push_back(n);
@@ -1681,9 +1992,12 @@ private:
       Key parent_key;     // the order the node's shapes arrive in
       bool has_parent_key;
     };
-    explicit CourseRule(std::vector<Item> &items) : items_(items) {}
+    /// `src`: the shapes the items were made from, for their ids; nullptr
+    /// when the ids are the input positions (construct).
+    CourseRule(std::vector<Item> &items, const std::vector<Tagged> *src) : items_(items), src_(src) {}
     Box box(std::size_t i) const { return bvh_detail::box_of(items_[i].shape); }
     T &shape(std::size_t i) { return items_[i].shape; }
+    std::uint32_t id(std::size_t i) const { return src_ ? (*src_)[items_[i].index].id : items_[i].index; }
     void order_leaf(const BuildTask<State> &t) {
       // Selection left the range unordered; restore the parent's order.
       const auto first = items_.begin() + long(t.begin), last = items_.begin() + long(t.end);
@@ -1707,6 +2021,7 @@ private:
 
   private:
     std::vector<Item> &items_;
+    const std::vector<Tagged> *src_;
   };
 
   /// The items of SahRule and InOrderRule: the shapes themselves, taken in
@@ -1714,14 +2029,15 @@ private:
   class ShapesAsItems {
   public:
     struct State {};
-    explicit ShapesAsItems(std::vector<T> &shapes) : v_(shapes) {}
-    Box box(std::size_t i) const { return bvh_detail::box_of(v_[i]); }
-    T &shape(std::size_t i) { return v_[i]; }
+    explicit ShapesAsItems(std::vector<Tagged> &shapes) : v_(shapes) {}
+    Box box(std::size_t i) const { return bvh_detail::box_of(v_[i].shape); }
+    T &shape(std::size_t i) { return v_[i].shape; }
+    std::uint32_t id(std::size_t i) const { return v_[i].id; }
     void order_leaf(const BuildTask<State> &) {}
     static State root_state() { return State{}; }
 
   protected:
-    std::vector<T> &v_;
+    std::vector<Tagged> &v_;
   };
 
   /// The alternative build rule, binned SAH for a ternary tree. Leaves are
@@ -1739,9 +2055,9 @@ private:
     using State = typename ShapesAsItems::State;
     using ShapesAsItems::ShapesAsItems;
     void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State *) {
-      std::vector<T> &v = this->v_; // (a dependent base: named through this)
+      std::vector<Tagged> &v = this->v_; // (a dependent base: named through this)
       Box centres;
-      for (std::size_t i = t.begin; i < t.end; ++i) centres.extend(Box::at(v[i].getCenter()));
+      for (std::size_t i = t.begin; i < t.end; ++i) centres.extend(Box::at(v[i].shape.getCenter()));
       // Best (axis, first cut, second cut) over both axes.
       double best_cost = std::numeric_limits<double>::infinity();
       int best_axis = -1, best_i = 0, best_j = 0;
@@ -1753,7 +2069,7 @@ private:
         std::size_t bin_count[kSahBins] = {};
         for (std::size_t i = t.begin; i < t.end; ++i) {
           const int b = bin_of(v[i], axis, lo, extent);
-          bin_box[b].extend(bvh_detail::box_of(v[i]));
+          bin_box[b].extend(bvh_detail::box_of(v[i].shape));
           ++bin_count[b];
         }
         // Groups: bins [0, i), [i, j), [j, kSahBins).
@@ -1792,8 +2108,8 @@ private:
       if (best_axis >= 0) {
         const double lo = best_axis ? centres.y0 : centres.x0;
         const double extent = (best_axis ? centres.y1 : centres.x1) - lo;
-        const auto mid1 = std::partition(first, last, [&](const T &s) { return bin_of(s, best_axis, lo, extent) < best_i; });
-        const auto mid2 = std::partition(mid1, last, [&](const T &s) { return bin_of(s, best_axis, lo, extent) < best_j; });
+        const auto mid1 = std::partition(first, last, [&](const Tagged &s) { return bin_of(s, best_axis, lo, extent) < best_i; });
+        const auto mid2 = std::partition(mid1, last, [&](const Tagged &s) { return bin_of(s, best_axis, lo, extent) < best_j; });
         cut[0] = t.begin;
         cut[1] = std::size_t(mid1 - v.begin());
         cut[2] = std::size_t(mid2 - v.begin());
@@ -1802,8 +2118,8 @@ private:
         // Fallback: thirds by count along the longer side of the box.
         const int axis = box.dx() >= box.dy() ? 0 : 1;
         cut_in_thirds(t.begin, t.end, cut);
-        auto less = [axis](const T &a, const T &b) {
-          return axis ? a.getCenter().y < b.getCenter().y : a.getCenter().x < b.getCenter().x;
+        auto less = [axis](const Tagged &a, const Tagged &b) {
+          return axis ? a.shape.getCenter().y < b.shape.getCenter().y : a.shape.getCenter().x < b.shape.getCenter().x;
         };
         std::nth_element(first, v.begin() + long(cut[1]), last, less);
         std::nth_element(v.begin() + long(cut[1]), v.begin() + long(cut[2]), last, less);
@@ -1811,8 +2127,8 @@ private:
     }
 
   private:
-    static int bin_of(const T &s, int axis, double lo, double extent) {
-      const double c = axis ? s.getCenter().y : s.getCenter().x;
+    static int bin_of(const Tagged &s, int axis, double lo, double extent) {
+      const double c = axis ? s.shape.getCenter().y : s.shape.getCenter().x;
       return std::min(kSahBins - 1, int(double(kSahBins) * (c - lo) / extent));
     }
   };
@@ -1847,6 +2163,7 @@ private:
       }
       Box box;
       for (std::size_t i = t.begin; i < t.end; ++i) box.extend(rule.box(i));
+      box = fat(box); // (a grown union is the union of the grown boxes)
       const std::size_t n = t.end - t.begin;
       in.box = box;
       in.count = n;
@@ -1887,34 +2204,35 @@ private:
 
   /// Builds at leaf `at` from `shapes` by the rule in use (a split or a
   /// partial rebuild: nodes from new_node()).
-  void build(int at, const std::vector<T> &shapes) {
+  void build(int at, const std::vector<Tagged> &shapes) {
     if (build_rule_ == BuildRule::sah) {
-      std::vector<T> v(shapes);
+      std::vector<Tagged> v(shapes);
       SahRule rule(v);
       std::vector<BuildTask<typename SahRule::State>> tasks{{at, 0, v.size(), -1, SahRule::root_state()}};
       build_top_down(tasks, rule, nullptr);
       return;
     }
-    CourseRule rule(fill_items(shapes));
+    CourseRule rule(fill_items(shapes.size(), [&](std::size_t i) -> const T & { return shapes[i].shape; }), &shapes);
     std::vector<BuildTask<typename CourseRule::State>> &tasks = scratch_.value.tasks;
     tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule::root_state()});
     build_top_down(tasks, rule, nullptr);
   }
 
   /// Builds at leaf `at` from `shapes`, keeping their order (InOrderRule).
-  void build_in_order(int at, std::vector<T> &shapes) {
+  void build_in_order(int at, std::vector<Tagged> &shapes) {
     InOrderRule rule(shapes);
     std::vector<BuildTask<typename InOrderRule::State>> tasks{{at, 0, shapes.size(), -1, InOrderRule::root_state()}};
     build_top_down(tasks, rule, nullptr);
   }
 
-  /// The reused item array, filled from `shapes` (input position = index).
-  std::vector<Item> &fill_items(const std::vector<T> &shapes) {
+  /// The reused item array, filled with shape(i) for i < n (input
+  /// position = i).
+  template <class Shape> std::vector<Item> &fill_items(std::size_t n, Shape &&shape) {
     std::vector<Item> &items = scratch_.value.items;
     // (clear and append, not resize: T need not be default-constructible)
     items.clear();
-    items.reserve(shapes.size());
-    for (std::size_t i = 0; i < shapes.size(); ++i) items.push_back(make_item(shapes[i], std::uint32_t(i)));
+    items.reserve(n);
+    for (std::size_t i = 0; i < n; ++i) items.push_back(make_item(shape(i), std::uint32_t(i)));
     return items;
   }
 
@@ -1926,7 +2244,7 @@ private:
   /// Rebuilds the subtree at `at` from its own shapes, taken in leaf order:
   /// by the build rule, or with `keep_order` by build_in_order.
   void rebuild(int at, bool keep_order = false) {
-    std::vector<T> shapes;
+    std::vector<Tagged> shapes;
     shapes.reserve(info_[at].count);
     // (free_node leaves a node's children in place, so the walk goes on.)
     walk(at, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
@@ -2015,12 +2333,15 @@ private:
   bvh_detail::BlockVector<Info> info_;
   std::vector<int> free_; // indices of unused nodes, reused first
   bvh_detail::LeafPool<T> pool_; // every leaf's shapes
+  std::vector<Loc> loc_;              // by id: where its shape is
+  std::vector<std::uint32_t> free_ids_; // ids given back, reused first
   int root_ = -1;
   std::size_t size_ = 0;
   int split_threshold_;
   int depth_limit_;
   BuildRule build_rule_ = BuildRule::course;
   unsigned build_threads_ = 0; // 0: hardware concurrency
+  double margin_ = 0;          // see set_margin()
   bvh_detail::Scratch<BuildScratch> scratch_;
 };
 

@@ -174,8 +174,9 @@ TEST(leaf_pool_matches_a_model) {
     auto same = [&](const Pool &p) {
       for (std::size_t k = 0; k < slots.size(); ++k) {
         if (p.size(slots[k]) != model[k].size()) return false;
-        for (std::size_t i = 0; i < model[k].size(); ++i)
-          if (p.data(slots[k])[i].v != model[k][i]) return false;
+        for (std::size_t i = 0; i < model[k].size(); ++i) // each id travels with its shape
+          if (p.data(slots[k])[i].v != model[k][i] || p.ids(slots[k])[i] != std::uint32_t(model[k][i]) * 7u)
+            return false;
       }
       return true;
     };
@@ -189,7 +190,7 @@ TEST(leaf_pool_matches_a_model) {
         const std::size_t k = rng() % slots.size();
         const int times = k % 16 == 0 ? 1 + int(rng() % 200) : 1;
         for (int t = 0; t < times; ++t) {
-          pool.push_back(slots[k], Tracked(next));
+          pool.push_back(slots[k], Tracked(next), std::uint32_t(next) * 7u);
           model[k].push_back(next++);
         }
       } else if (op < 9) { // erase inside a slot, keeping order
