@@ -47,6 +47,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <queue>
 #include <stdexcept>
 #include <string>
@@ -576,6 +577,28 @@ private:
   std::vector<Class> classes_;
 };
 
+/// A query box rounded outwards to float, and its centre, as the node
+/// tests (BVH::child_masks) read them.
+struct Probe {
+  /// The probe of `box`.
+  static Probe around(const Box &box) {
+    const float lo_x = float_down(box.x0), lo_y = float_down(box.y0);
+    const float hi_x = float_up(box.x1), hi_y = float_up(box.y1);
+    return Probe(lo_x, lo_y, hi_x, hi_y, 0.5f * (lo_x + hi_x), 0.5f * (lo_y + hi_y));
+  }
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+  // Broadcast to 4 lanes once per query, not once per node.
+  Probe(float lx, float ly, float hx, float hy, float mx, float my)
+      : lo_x(_mm_set1_ps(lx)), lo_y(_mm_set1_ps(ly)), hi_x(_mm_set1_ps(hx)), hi_y(_mm_set1_ps(hy)),
+        mid_x(_mm_set1_ps(mx)), mid_y(_mm_set1_ps(my)) {}
+  __m128 lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
+#else
+  Probe(float lx, float ly, float hx, float hy, float mx, float my)
+      : lo_x(lx), lo_y(ly), hi_x(hx), hi_y(hy), mid_x(mx), mid_y(my) {}
+  float lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
+#endif
+};
+
 /// A view of n contiguous X: a leaf's shapes.
 template <class X> struct Span {
   X *first;
@@ -629,6 +652,7 @@ template <class X> struct Scratch {
 /// shapes. The shapes themselves live in one pool (bvh_detail::LeafPool).
 template <class T> class BVH {
   using Box = bvh_detail::Box;
+  using Probe = bvh_detail::Probe;
 
 public:
   /// `depth_limit` value meaning "no limit" (the course's default of 0).
@@ -1086,6 +1110,104 @@ public:
   template <class Out> Out query_into(const T &shape, Out out) const {
     query(shape, [&](const T &s) { *out++ = s; });
     return out;
+  }
+
+  /// An input iterator over the shapes a query finds, in the order query()
+  /// calls f on them: the search itself, suspended between steps (its stack
+  /// of nodes lives in the iterator, on the call stack for shallow trees).
+  /// Valid while the tree does not change.
+  class overlap_iterator {
+  public:
+    using iterator_category = std::input_iterator_tag;
+    using value_type = T;
+    using difference_type = std::ptrdiff_t;
+    using pointer = const T *;
+    using reference = const T &;
+
+    /// The end of every search.
+    overlap_iterator() = default;
+    /// The shape found (not at the end).
+    reference operator*() const {
+      BVH_ASSERT(at_ != nullptr, "dereferencing the end of an overlapping() range");
+      return *at_;
+    }
+    pointer operator->() const { return &**this; }
+    /// The next shape found (the end after the last).
+    overlap_iterator &operator++() {
+      BVH_ASSERT(at_ != nullptr, "incrementing the end of an overlapping() range");
+      find_next();
+      return *this;
+    }
+    /// Steps on; returns nothing (an input iterator's post-increment).
+    void operator++(int) { ++*this; }
+    /// Equal when both are at the end or at the same shape.
+    friend bool operator==(const overlap_iterator &a, const overlap_iterator &b) { return a.at_ == b.at_; }
+    friend bool operator!=(const overlap_iterator &a, const overlap_iterator &b) { return a.at_ != b.at_; }
+
+  private:
+    friend class BVH;
+    overlap_iterator(const BVH *tree, const Box &box, const T *shape)
+        : tree_(tree), box_(box), probe_(Probe::around(box)) {
+      if (shape) shape_.emplace(*shape);
+      if (tree->root_ < 0 || !tree->info_[tree->root_].box.overlaps(box)) return;
+      stack_.push(tree->root_);
+      find_next();
+    }
+    void find_next() {
+      at_ = nullptr;
+      for (;;) {
+        while (next_ != last_) {
+          const T *s = next_++;
+          if (bvh_detail::box_of(*s).overlaps(box_) && (!shape_ || intersect(*s, *shape_))) {
+            at_ = s;
+            return;
+          }
+        }
+        if (stack_.empty()) return;
+        const int n = stack_.pop();
+        const Node &node = tree_->nodes_[n];
+        if (node.num_children == 0) {
+          next_ = tree_->pool_.data(leaf_slot(node));
+          last_ = next_ + node.child[2];
+          continue;
+        }
+        unsigned hits, near;
+        child_masks(node, probe_, hits, near);
+        for (int c = node.num_children - 1; c >= 0; --c) // left child on top
+          if (hits & (1u << c)) stack_.push(node.child[c]);
+      }
+    }
+    const BVH *tree_ = nullptr;
+    Box box_;
+    Probe probe_ = Probe(0, 0, 0, 0, 0, 0);
+    std::optional<T> shape_; // a copy: the probe may be a temporary
+    bvh_detail::IndexStack stack_;
+    const T *next_ = nullptr, *last_ = nullptr; // the current leaf's shapes not yet looked at
+    const T *at_ = nullptr;                     // nullptr: the end
+  };
+
+  /// What overlapping() returns: a range for range-for.
+  class overlap_range {
+  public:
+    overlap_iterator begin() const { return first_; }
+    overlap_iterator end() const { return overlap_iterator(); }
+
+  private:
+    friend class BVH;
+    explicit overlap_range(overlap_iterator first) : first_(std::move(first)) {}
+    overlap_iterator first_;
+  };
+
+  /// The shapes query(shape, f) would pass to f, as a lazy range:
+  /// `for (const T &s : tree.overlapping(shape))`, stoppable by break. The
+  /// search starts at once and each step runs on ++; nothing is allocated
+  /// unless the tree is over 96 levels deep.
+  overlap_range overlapping(const T &shape) const {
+    return overlap_range(overlap_iterator(this, bvh_detail::box_of(shape), &shape));
+  }
+  /// The shapes query(box, f) would pass to f (boxes that meet `box`).
+  overlap_range overlapping(const BoundingBox &box) const {
+    return overlap_range(overlap_iterator(this, Box::of(box), nullptr));
   }
 
   /// A stored shape at the least distance from `p` (by a free
@@ -1609,25 +1731,6 @@ private:
     p.hi_y[slot] = bvh_detail::float_up(box.y1);
   }
 
-  struct Probe { // a query box rounded outwards to float, and its centre
-    /// The probe of `box`.
-    static Probe around(const Box &box) {
-      const float lo_x = bvh_detail::float_down(box.x0), lo_y = bvh_detail::float_down(box.y0);
-      const float hi_x = bvh_detail::float_up(box.x1), hi_y = bvh_detail::float_up(box.y1);
-      return Probe(lo_x, lo_y, hi_x, hi_y, 0.5f * (lo_x + hi_x), 0.5f * (lo_y + hi_y));
-    }
-#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
-    // Broadcast to 4 lanes once per query, not once per node.
-    Probe(float lx, float ly, float hx, float hy, float mx, float my)
-        : lo_x(_mm_set1_ps(lx)), lo_y(_mm_set1_ps(ly)), hi_x(_mm_set1_ps(hx)), hi_y(_mm_set1_ps(hy)),
-          mid_x(_mm_set1_ps(mx)), mid_y(_mm_set1_ps(my)) {}
-    __m128 lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
-#else
-    Probe(float lx, float ly, float hx, float hy, float mx, float my)
-        : lo_x(lx), lo_y(ly), hi_x(hx), hi_y(hy), mid_x(mx), mid_y(my) {}
-    float lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
-#endif
-  };
 
   /// For inner node `node`: bit c of `hits` is set when child c's box meets
   /// the probe's box, bit c of `near` when it also holds the probe's centre
@@ -2205,24 +2308,29 @@ private:
   /// Builds at leaf `at` from `shapes` by the rule in use (a split or a
   /// partial rebuild: nodes from new_node()).
   void build(int at, const std::vector<Tagged> &shapes) {
+    const Box before = info_[at].box;
     if (build_rule_ == BuildRule::sah) {
       std::vector<Tagged> v(shapes);
       SahRule rule(v);
       std::vector<BuildTask<typename SahRule::State>> tasks{{at, 0, v.size(), -1, SahRule::root_state()}};
       build_top_down(tasks, rule, nullptr);
+      refit_above(at, before);
       return;
     }
     CourseRule rule(fill_items(shapes.size(), [&](std::size_t i) -> const T & { return shapes[i].shape; }), &shapes);
     std::vector<BuildTask<typename CourseRule::State>> &tasks = scratch_.value.tasks;
     tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule::root_state()});
     build_top_down(tasks, rule, nullptr);
+    refit_above(at, before);
   }
 
   /// Builds at leaf `at` from `shapes`, keeping their order (InOrderRule).
   void build_in_order(int at, std::vector<Tagged> &shapes) {
+    const Box before = info_[at].box;
     InOrderRule rule(shapes);
     std::vector<BuildTask<typename InOrderRule::State>> tasks{{at, 0, shapes.size(), -1, InOrderRule::root_state()}};
     build_top_down(tasks, rule, nullptr);
+    refit_above(at, before);
   }
 
   /// The reused item array, filled with shape(i) for i < n (input
@@ -2257,6 +2365,13 @@ private:
       build_in_order(at, shapes);
     else
       build(at, shapes);
+  }
+
+  /// A build's last step. With a margin, leaves that update() left larger
+  /// than their shapes come out of a build fitted again, so the node built
+  /// at `at` may have shrunk: the boxes above it shrink too.
+  void refit_above(int at, const Box &before) {
+    if (info_[at].box != before && info_[at].parent >= 0) refit_up(info_[at].parent);
   }
 
   /// Calls f(node index) on every node in pre-order (children left to right).

@@ -1,0 +1,334 @@
+// tests/test_moving.cpp — handles, update(handle, moved) with and without a
+// margin, k-nearest and the lazy overlapping() range, each against a
+// brute-force model on random sequences; validate() after every step.
+// Seeds are printed on failure (BVH_SEED changes them; BVH_TEST_SCALE shrinks
+// the runs for valgrind and the sanitizers).
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <map>
+#include <random>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "bvh.h"
+#include "check.h"
+#include "scenes.h"
+
+namespace {
+
+using Tree = BVH<Disk>;
+using Handle = Tree::handle;
+
+std::string seed_note(unsigned seed, int step) { return "BVH_SEED=" + std::to_string(seed) + " step " + std::to_string(step); }
+
+/// The tree's contents agree with the model, shape by shape and handle by
+/// handle: get(), contains(), find() and iteration with iterator::id().
+bool agrees(const Tree &tree, const std::map<std::uint32_t, Disk> &model, std::string *why) {
+  if (tree.size() != model.size()) return *why = "size " + std::to_string(tree.size()), false;
+  for (const auto &[id, d] : model) {
+    const Handle h{id};
+    if (!tree.contains(h)) return *why = "lost handle " + std::to_string(id), false;
+    if (!(tree.get(h) == d)) return *why = "get(" + std::to_string(id) + ") is another shape", false;
+    if (!(*tree.find(h) == d) || tree.find(h).id() != h) return *why = "find(" + std::to_string(id) + ")", false;
+  }
+  std::size_t seen = 0;
+  for (auto it = tree.begin(); it != tree.end(); ++it, ++seen) {
+    const auto m = model.find(it.id().id);
+    if (m == model.end() || !(m->second == *it)) return *why = "iterator's id names another shape", false;
+  }
+  if (seen != model.size()) return *why = "iteration saw " + std::to_string(seen), false;
+  return tree.validate(why);
+}
+
+/// A disk moved by (dx, dy).
+Disk moved(const Disk &d, double dx, double dy) {
+  return Disk(Point(d.getCenter().x + dx, d.getCenter().y + dy), d.getRadius(), d.getColor());
+}
+
+/// Random inserts, erases (by handle and by iterator) and updates of every
+/// size: a jitter, a step about the radius, a jump across the scene, a move
+/// far out of the scene's box and back, a change of radius; after each step
+/// the tree agrees with the model.
+void random_sequence(unsigned seed, double margin, Tree::BuildRule rule, int depth_limit, int steps) {
+  note(seed_note(seed, -1) + " margin " + std::to_string(margin));
+  Maker make(seed);
+  std::mt19937 &rng = make.rng;
+  Tree tree(4, depth_limit);
+  tree.set_build_rule(rule);
+  tree.set_margin(margin);
+  std::map<std::uint32_t, Disk> model;
+  std::vector<Disk> start = make.scene<Disk>(200, 4);
+  tree.construct(start);
+  for (std::size_t i = 0; i < start.size(); ++i) model.emplace(std::uint32_t(i), start[i]);
+  std::string why;
+  CHECK(agrees(tree, model, &why));
+  auto pick = [&]() {
+    auto it = model.begin();
+    std::advance(it, long(rng() % model.size()));
+    return Handle{it->first};
+  };
+  for (int step = 0; step < steps; ++step) {
+    note(seed_note(seed, step) + " margin " + std::to_string(margin));
+    const unsigned op = unsigned(rng() % 20);
+    if (op < 3 || model.empty()) {
+      Disk d;
+      make.make(d, 4);
+      const Handle h = tree.insert(d);
+      CHECK(model.count(h.id) == 0);
+      model[h.id] = d;
+    } else if (op == 3) {
+      const Handle h = pick();
+      tree.erase(h);
+      CHECK(!tree.contains(h) || model.size() == 1);
+      model.erase(h.id);
+    } else if (op == 4) {
+      auto it = tree.begin();
+      std::advance(it, long(rng() % tree.size()));
+      model.erase(it.id().id);
+      tree.erase(it);
+    } else {
+      const Handle h = pick();
+      const Disk &d = model[h.id];
+      const double r = d.getRadius();
+      Disk to = d;
+      switch (op % 6) {
+      case 0: to = moved(d, make.coord(-0.01, 0.01), make.coord(-0.01, 0.01)); break;
+      case 1: to = moved(d, make.coord(-r - 1, r + 1), make.coord(-r - 1, r + 1)); break;
+      case 2: to = moved(d, make.coord(-500, 500), make.coord(-500, 500)); break;
+      case 3: to = moved(d, 5000, -7000); break; // far out of the scene's box
+      case 4: to = Disk(d.getCenter(), make.coord(0, 6), d.getColor()); break;
+      default: to = moved(d, 0, 0); break; // no move at all
+      }
+      tree.update(h, to);
+      model[h.id] = to;
+      if (op % 6 == 3) { // and back
+        const Disk back = moved(to, -5000, 7000);
+        tree.update(h, back);
+        model[h.id] = back;
+      }
+    }
+    if (!agrees(tree, model, &why)) {
+      CHECK_EQ(why, std::string());
+      return;
+    }
+  }
+  // Queries still find exactly what a scan of the model finds.
+  for (int q = 0; q < 50; ++q) {
+    Disk probe;
+    make.make(probe, 30);
+    std::size_t expected = 0, found = 0;
+    for (const auto &[id, d] : model) expected += intersect(d, probe) ? 1 : 0;
+    tree.query(probe, [&](const Disk &) { ++found; });
+    CHECK_EQ(found, expected);
+    CHECK_EQ(tree.collision(probe), expected != 0);
+  }
+}
+
+TEST(handles_survive_random_inserts_erases_and_moves) {
+  random_sequence(base_seed() + 3100, 0, Tree::BuildRule::course, 0, scaled(3000));
+}
+TEST(handles_survive_with_a_margin) {
+  random_sequence(base_seed() + 3200, 0.75, Tree::BuildRule::course, 0, scaled(3000));
+}
+TEST(handles_survive_under_the_sah_rule_and_a_depth_limit) {
+  random_sequence(base_seed() + 3300, 0, Tree::BuildRule::sah, 3, scaled(2000));
+  random_sequence(base_seed() + 3301, 0.3, Tree::BuildRule::sah, 0, scaled(2000));
+}
+
+TEST(update_inside_the_leaf_keeps_iterators) {
+  // A shape that shrinks in place stays in its leaf: an iterator to it
+  // still points to it, now updated.
+  Maker make(base_seed() + 3400);
+  Tree tree(4, 0);
+  std::vector<Disk> disks = make.scene<Disk>(500, 4);
+  tree.construct(disks);
+  int checked = 0;
+  for (std::uint32_t id = 0; id < disks.size(); id += 7) {
+    const Tree::iterator it = tree.find(Handle{id});
+    const Disk smaller(disks[id].getCenter(), disks[id].getRadius() / 2, disks[id].getColor());
+    tree.update(Handle{id}, smaller);
+    CHECK(*it == smaller);
+    CHECK(it.id() == Handle{id});
+    ++checked;
+  }
+  std::string why;
+  CHECK(tree.validate(&why));
+  CHECK(checked > 50);
+}
+
+TEST(handles_survive_copies_moves_and_rebuilds) {
+  Maker make(base_seed() + 3500);
+  Tree tree(4, 0);
+  std::map<std::uint32_t, Disk> model;
+  for (const Disk &d : make.scene<Disk>(2000, 3)) model[tree.insert(d).id] = d;
+  for (std::uint32_t id = 0; id < 2000; id += 3) { // holes in the id table
+    tree.erase(Handle{id});
+    model.erase(id);
+  }
+  std::string why;
+  Tree copy(tree);
+  CHECK(agrees(copy, model, &why));
+  Tree moved_to(std::move(copy));
+  CHECK(agrees(moved_to, model, &why));
+  CHECK(copy.empty() && copy.validate());
+  tree.set_margin(2); // every box recomputed
+  CHECK(agrees(tree, model, &why));
+  tree.set_margin(0);
+  CHECK(agrees(tree, model, &why));
+  // Freed ids are given again before new ones.
+  const Handle again = tree.insert(Disk(Point(1, 1), 1));
+  CHECK(again.id < 2000 && again.id % 3 == 0);
+}
+
+TEST(updating_the_only_shape_and_an_empty_tree) {
+  Tree tree(4, 0);
+  const Handle h = tree.insert(Disk(Point(10, 10), 1));
+  tree.update(h, Disk(Point(900, 900), 2)); // leaves its (only) leaf
+  CHECK(tree.contains(h) && tree.size() == 1);
+  CHECK(tree.get(h) == Disk(Point(900, 900), 2));
+  std::string why;
+  CHECK(tree.validate(&why));
+  tree.erase(h);
+  CHECK(!tree.contains(h) && tree.empty() && tree.validate(&why));
+  std::vector<Tree::neighbor> none;
+  tree.nearest(Point(0, 0), 5, std::back_inserter(none));
+  CHECK(none.empty());
+  int visited = 0;
+  for (const Disk &d : tree.overlapping(Disk(Point(0, 0), 1e9))) visited += int(d.getRadius() > 0);
+  CHECK_EQ(visited, 0);
+}
+
+TEST(moves_do_not_degrade_the_tree) {
+  // Many small steps and some teleports: the tree's SAH cost stays near a
+  // bulk build's of the same disks (the W4 benchmark reports the figure).
+  const unsigned seed = base_seed() + 3600;
+  note("BVH_SEED=" + std::to_string(seed));
+  for (double margin : {0.0, 0.5}) {
+    Maker make(seed);
+    std::vector<Disk> disks;
+    for (int i = 0; i < scaled(4000); ++i)
+      disks.push_back(Disk(Point(make.coord(0, 400), make.coord(0, 400)), make.coord(0.5, 1.5)));
+    Tree tree(4, 0);
+    tree.set_margin(margin);
+    std::vector<Handle> handles;
+    for (const Disk &d : disks) handles.push_back(tree.insert(d));
+    for (int frame = 0; frame < 30; ++frame) {
+      for (std::size_t i = 0; i < disks.size(); ++i) {
+        const double r = disks[i].getRadius();
+        Disk to = moved(disks[i], make.coord(-r, r), make.coord(-r, r));
+        if (frame % 10 == 9 && i % 100 == 0) to = Disk(Point(make.coord(0, 400), make.coord(0, 400)), r);
+        disks[i] = to;
+        tree.update(handles[i], to);
+      }
+    }
+    std::string why;
+    tree.validate(&why);
+    CHECK_EQ(why, std::string());
+    Tree bulk(4, 0);
+    bulk.set_margin(margin);
+    bulk.construct(disks);
+    const double drift = tree.sah_cost() / bulk.sah_cost();
+    note("BVH_SEED=" + std::to_string(seed) + " margin " + std::to_string(margin) + " drift " + std::to_string(drift));
+    CHECK(drift < 1.4);
+  }
+}
+
+/// The k nearest by brute force: (distance, id) ascending, the first k.
+template <class T>
+std::vector<std::pair<double, std::uint32_t>> brute_nearest(const std::vector<std::pair<std::uint32_t, T>> &all,
+                                                            const Point &p, std::size_t k) {
+  std::vector<std::pair<double, std::uint32_t>> v;
+  for (const auto &[id, s] : all) v.push_back({distance(p, s), id});
+  std::sort(v.begin(), v.end());
+  if (v.size() > k) v.resize(k);
+  return v;
+}
+
+template <class T> void nearest_against_brute(unsigned seed, double grid) {
+  note("BVH_SEED=" + std::to_string(seed));
+  Maker make(seed, grid);
+  BVH<T> tree(3, 0);
+  std::vector<std::pair<std::uint32_t, T>> all;
+  for (const T &s : make.scene<T>(scaled(1500), 8)) all.push_back({tree.insert(s).id, s});
+  // Duplicates and a cluster: ties at every distance.
+  for (int i = 0; i < 30; ++i) all.push_back({tree.insert(all[std::size_t(i)].second).id, all[std::size_t(i)].second});
+  for (int q = 0; q < scaled(300); ++q) {
+    const Point p(make.coord(-50, 1050), make.coord(-50, 1050));
+    const std::size_t k = q % 3 == 0 ? std::size_t(make.rng() % (all.size() + 10)) : std::size_t(q % 12);
+    std::vector<typename BVH<T>::neighbor> got;
+    tree.nearest(p, k, std::back_inserter(got));
+    const auto want = brute_nearest(all, p, k);
+    CHECK_EQ(got.size(), want.size());
+    for (std::size_t i = 0; i < std::min(got.size(), want.size()); ++i) {
+      CHECK_EQ(got[i].distance, want[i].first);
+      CHECK_EQ(got[i].id.id, want[i].second);
+      CHECK(got[i].shape == &tree.get(got[i].id));
+    }
+    if (k >= 1 && !got.empty()) {
+      double d1 = 0;
+      tree.nearest(p, &d1);
+      CHECK_EQ(d1, got[0].distance);
+    }
+  }
+}
+
+TEST(k_nearest_disks_against_brute_force) { nearest_against_brute<Disk>(base_seed() + 3700, 0); }
+TEST(k_nearest_on_a_grid_with_ties) { nearest_against_brute<Disk>(base_seed() + 3701, 25); }
+TEST(k_nearest_triangles_and_quads) {
+  nearest_against_brute<Triangle>(base_seed() + 3702, 0);
+  nearest_against_brute<Quad>(base_seed() + 3703, 10);
+}
+
+TEST(overlapping_range_visits_what_query_visits) {
+  const unsigned seed = base_seed() + 3800;
+  Maker make(seed);
+  BVH<Shape> tree(4, 0);
+  for (const Shape &s : make.scene<Shape>(scaled(3000), 6)) tree.insert(s);
+  for (int q = 0; q < scaled(400); ++q) {
+    note("BVH_SEED=" + std::to_string(seed) + " probe " + std::to_string(q));
+    Shape probe;
+    make.make(probe, q % 2 ? 3 : 60);
+    std::vector<const Shape *> by_query, by_range;
+    tree.query(probe, [&](const Shape &s) { by_query.push_back(&s); });
+    for (const Shape &s : tree.overlapping(probe)) by_range.push_back(&s);
+    CHECK(by_query == by_range);
+    const BoundingBox box = probe.getBox();
+    by_query.clear();
+    by_range.clear();
+    tree.query(box, [&](const Shape &s) { by_query.push_back(&s); });
+    for (const Shape &s : tree.overlapping(box)) by_range.push_back(&s);
+    CHECK(by_query == by_range);
+    // break stops it: the first hit, as collision() would find one.
+    bool any = false;
+    for (const Shape &s : tree.overlapping(probe)) {
+      any = intersect(s, probe);
+      break;
+    }
+    CHECK_EQ(any, tree.collision(probe));
+  }
+}
+
+TEST(a_disk_query_finds_everything_within_its_radius) {
+  // README's claim: query(Disk(p, r), f) visits exactly the shapes within
+  // distance r of p.
+  const unsigned seed = base_seed() + 3900;
+  note("BVH_SEED=" + std::to_string(seed));
+  Maker make(seed);
+  BVH<Disk> tree(4, 0);
+  std::vector<Disk> all = make.scene<Disk>(scaled(2000), 5);
+  tree.construct(all);
+  for (int q = 0; q < scaled(200); ++q) {
+    const Point p(make.coord(0, 1000), make.coord(0, 1000));
+    const double r = make.coord(0, 40);
+    std::size_t found = 0, expected = 0;
+    for (const Disk &d : tree.overlapping(Disk(p, r))) found += distance(p, d) <= r ? 1 : 1000000;
+    for (const Disk &d : all) expected += distance(p, d) <= r ? 1 : 0;
+    CHECK_EQ(found, expected);
+  }
+}
+
+} // namespace
+
+int main(int argc, char **argv) { return run_all_tests(argc, argv); }
