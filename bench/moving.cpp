@@ -135,6 +135,14 @@ using Clock = std::chrono::steady_clock;
 using Tree = BVH<Disk>;
 
 /// The timed region of one run (and callgrind's instrumentation under it).
+/// Seconds since `t`, which becomes now.
+double lap(Clock::time_point &t) {
+  const Clock::time_point now = Clock::now();
+  const double s = std::chrono::duration<double>(now - t).count();
+  t = now;
+  return s;
+}
+
 class Timer {
 public:
   Timer() {
@@ -255,6 +263,7 @@ Scene make_scene(std::size_t n, int frames, std::uint64_t seed) {
 /// One run of a method over every frame.
 struct W4Run {
   double seconds = 0; // the frames only
+  double moving = 0;  // of which the moves (update / MoveProxy / remove + insert); the rest is the queries
   double fill = 0;    // the initial fill (not in `seconds`)
   std::vector<std::uint64_t> pairs; // per frame
   double sah_same = 0, sah_zero = 0; // ours: SAH over a bulk build's, same margin / margin 0
@@ -281,7 +290,9 @@ W4Run w4_ours(const Scene &s, double margin) {
 
   Timer timer;
   for (int f = 1; f <= s.frames; ++f) {
+    Clock::time_point t = Clock::now();
     for (std::size_t i = 0; i < s.n; ++i) tree.update(h[i], s.disk(f, i));
+    r.moving += lap(t);
     std::uint64_t hits = 0; // query() reports the disk itself too: n of them
     for (std::size_t i = 0; i < s.n; ++i) tree.query(s.disk(f, i), [&hits](const Disk &) { ++hits; });
     if (hits < s.n || (hits - s.n) % 2)
@@ -354,6 +365,7 @@ W4Run w4_box2d(const Scene &s) {
 
   Timer timer;
   for (int f = 1; f <= s.frames; ++f) {
+    Clock::time_point t = Clock::now();
     const std::vector<char> &jumped = s.teleport[std::size_t(f)];
     for (std::size_t i = 0; i < s.n; ++i) {
       const Disk d = s.disk(f, i);
@@ -363,6 +375,7 @@ W4Run w4_box2d(const Scene &s) {
       tree.MoveProxy(proxy[i], to_box2d(d), move);
       cur[i] = d;
     }
+    r.moving += lap(t);
     std::uint64_t k = 0;
     for (std::size_t i = 0; i < s.n; ++i) {
       Box2DPairs q{&tree, &cur, std::uint32_t(i)};
@@ -403,12 +416,14 @@ template <class Params> W4Run w4_boost(const Scene &s) {
 
   Timer timer;
   for (int f = 1; f <= s.frames; ++f) {
+    Clock::time_point t = Clock::now();
     for (std::size_t i = 0; i < s.n; ++i) {
       cur[i] = s.disk(f, i);
       if (rt.remove(values[i]) != 1) fail("Boost: remove() missed a value");
       values[i].first = to_boost(cur[i]);
       rt.insert(values[i]);
     }
+    r.moving += lap(t);
     std::uint64_t k = 0;
     for (std::size_t i = 0; i < s.n; ++i) {
       const Disk &d = cur[i];
@@ -436,6 +451,13 @@ struct W4Row {
     std::vector<double> t;
     for (const W4Run &r : runs) t.push_back(r.fill);
     return median(t);
+  }
+  /// The moves' share of a frame, in the run of median total time.
+  double moving_per_frame() const {
+    std::vector<const W4Run *> by(runs.size());
+    for (std::size_t i = 0; i < runs.size(); ++i) by[i] = &runs[i];
+    std::sort(by.begin(), by.end(), [](const W4Run *a, const W4Run *b) { return a->seconds < b->seconds; });
+    return by[by.size() / 2]->moving / double(runs.front().pairs.size());
   }
   std::string problem() const {
     for (const W4Run &r : runs)
@@ -510,19 +532,20 @@ void w4(const Options &opt) {
     return sum / double(frames);
   };
 
-  std::printf("\n%-16s %9s %10s %8s %12s %10s %10s %9s\n", "method", "fill s", "s/frame", "x Box2D", "pairs/frame",
-              "SAH/bulk", "SAH/bulk0", "validate");
-  std::printf("%s\n", std::string(91, '-').c_str());
+  std::printf("\n%-16s %8s %9s %9s %9s %8s %11s %9s %9s %8s\n", "method", "fill s", "s/frame", "moves", "queries",
+              "x Box2D", "pairs/frame", "SAH/bulk", "SAH/bulk0", "validate");
+  std::printf("%s\n", std::string(108, '-').c_str());
   std::size_t wrong = 0;
   for (const W4Row &r : rows) {
     const bool ours = r.name.compare(0, 4, "ours") == 0;
-    std::printf("%-16s %9.4f %10.5f %8s %12.1f", r.name.c_str(), r.fill(), r.per_frame(),
+    std::printf("%-16s %8.4f %9.5f %9.5f %9.5f %8s %11.1f", r.name.c_str(), r.fill(), r.per_frame(),
+                r.moving_per_frame(), r.per_frame() - r.moving_per_frame(),
                 cell("%.3f", box2d ? r.per_frame() / box2d->per_frame() : 0).c_str(), mean_of(r.runs.back().pairs));
     if (ours) {
       const W4Run &last = r.runs.back();
       bool valid = true;
       for (const W4Run &x : r.runs) valid = valid && x.valid;
-      std::printf(" %10.4f %10.4f %9s\n", last.sah_same, last.sah_zero, valid ? "ok" : "FAILED");
+      std::printf(" %9.4f %9.4f %8s\n", last.sah_same, last.sah_zero, valid ? "ok" : "FAILED");
     } else {
       std::printf("\n");
     }
@@ -543,8 +566,10 @@ void w4(const Options &opt) {
   } else {
     std::printf("\nno method ran without a problem of its own\n");
   }
-  std::printf("SAH/bulk: sah_cost() after the last frame over a construct() of the final disks with the same\n"
-              "margin; SAH/bulk0: over a margin-0 construct() (the margin's own cost included)\n");
+  std::printf("s/frame: median over the runs of the frames' total, per frame; moves, queries: its two parts\n"
+              "(in the median run; queries = s/frame - moves). SAH/bulk: sah_cost() after the last frame over\n"
+              "a construct() of the final disks with the same margin; SAH/bulk0: over a margin-0 construct()\n"
+              "(the margin's own cost included)\n");
 
   // The goals.
   const W4Row *best = nullptr;
