@@ -163,7 +163,8 @@ bench-builders: $(BUILD)/bench_builders
 # moving for 100 frames with an overlap query per disk per frame (ours update() at
 # several margins, Box2D MoveProxy, Boost remove + insert), and k-nearest on 1M disks
 # (ours nearest(p, k) against Boost's nearest queries). Table to stdout and
-# bench/results_moving.txt; RUNS=n; QUICK=1 a few seconds, into $(BUILD)/results_moving.txt.
+# bench/results_moving.txt; RUNS=n (default 3: about 13 minutes); QUICK=1 a few seconds,
+# into $(BUILD)/results_moving.txt.
 # Exits 1 when the methods disagree or validate() fails.
 $(BUILD)/bench_moving: bench/moving.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
 	@id=$$(sha1sum bvh.h | cut -c1-12); head=$$(git rev-parse --short HEAD 2>/dev/null || echo none); \
