@@ -18,8 +18,11 @@
 // large scenes, the same tree whatever their number); insert O(log n) amortised,
 // including the partial rebuilds that keep the tree balanced under any
 // insertion order; collision O(log n + shapes whose boxes touch the probe);
-// iteration O(1) amortised per step. Copy, destruction and every traversal
-// are iterative, so no input can overflow the stack.
+// iteration O(1) amortised per step; update(handle, moved) O(depth) while
+// the shape stays inside its leaf's box (set_margin makes those boxes fat),
+// else an erase and an insert; nearest(p, k) O(log n + k) typically. Copy,
+// destruction and every traversal are iterative, so no input can overflow
+// the stack.
 //
 // Where to look: the build rule is `CourseRule` (`SahRule` the alternative),
 // which plugs into the one build loop `build_top_down`; the insertion
@@ -649,7 +652,9 @@ template <class X> struct Scratch {
 /// indices, so a query decides all three children from one line; a leaf's
 /// pool slot and shape count. `info_` holds the rest: the exact double box,
 /// parent, depth, shape count and, for leaves, the slot that owns the
-/// shapes. The shapes themselves live in one pool (bvh_detail::LeafPool).
+/// shapes. The shapes themselves live in one pool (bvh_detail::LeafPool),
+/// each with its handle's id beside it; `loc_` maps an id back to its leaf
+/// and position, and every change to a leaf rewrites the entries it moves.
 template <class T> class BVH {
   using Box = bvh_detail::Box;
   using Probe = bvh_detail::Probe;
@@ -1959,20 +1964,21 @@ private:
       clear_nodes();
       return;
     }
-    // 1. Refit, bottom-up; note the ancestors (leaf's parent first).
-    std::vector<int> up;
+    // 1. Refit, bottom-up (above the first box that does not change, only
+    // the counts do), and 2. find the node to mend on the way.
+    int mend = shapes_of(leaf).empty() ? info_[leaf].parent : -1;
+    bool refit = true;
     for (int n = leaf; n >= 0; n = info_[n].parent) {
       Info &in = info_[n];
       --in.count;
-      const Box box = fitted_box(n);
-      in.box = box;
-      if (in.parent >= 0 && in.count != 0) set_child_box(in.parent, in.slot, box);
-      if (n != leaf) up.push_back(n);
+      if (refit) {
+        const Box box = fitted_box(n);
+        refit = box != in.box;
+        in.box = box;
+        if (refit && in.parent >= 0 && in.count != 0) set_child_box(in.parent, in.slot, box);
+      }
+      if (n != leaf && in.count <= std::size_t(split_threshold_)) mend = n; // the highest wins
     }
-    // 2. Structure.
-    int mend = shapes_of(leaf).empty() ? info_[leaf].parent : -1;
-    for (int a : up)
-      if (info_[a].count <= std::size_t(split_threshold_)) mend = a;
     if (mend >= 0) rebuild(mend, true);
     // 3. Balance: the highest lopsided ancestor of what changed.
     int scapegoat = -1;
