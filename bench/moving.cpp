@@ -31,8 +31,11 @@
 // once, before any method runs, so every method sees identical shapes.
 // After the moves of a frame each method makes one overlap query per disk
 // and counts the touching pairs by the exact intersect(Disk, Disk) of
-// intersect.h; the run fails (exit 1) unless every method counts the same
-// pairs in every frame. Methods:
+// intersect.h. Every run must count the same pairs in every frame as the
+// first run that found nothing wrong in itself; a method that does not (or
+// whose own count is odd, or, for ours, whose validate() is false or whose
+// get(h[i]) is not disk i's last position) is marked WRONG in the table, and
+// the program exits 1 after printing every table. Methods:
 //   ours m=M       BVH<Disk>(4, 0), set_margin(M), construct(); per frame
 //                  update(h[i], moved) per disk, then query(disk, f) per disk
 //   Box2D          b2DynamicTree: CreateProxy per disk; per frame
@@ -43,7 +46,8 @@
 //                  constructor; per frame remove(old) + insert(new) per disk,
 //                  then query(intersects(box)) per disk with the exact test
 // Only the frames are timed (not the fill); time per frame is the median of
-// the runs' 100-frame totals divided by the frames. For ours the table also
+// the runs' 100-frame totals divided by the frames, split into the moves and
+// the queries (two clock reads a frame). For ours the table also
 // gives the tree's SAH cost (sah_cost()) after the last frame over that of a
 // bulk construct() of the final disks with the same margin, and with margin
 // 0, and validate().
@@ -68,7 +72,8 @@
 //                  k-th best
 // Both are checked against ours for every query point (the same k distances,
 // bit for bit; ids may differ only among disks at the k-th distance), and
-// ours against a brute-force scan for a few points.
+// ours against a brute-force scan for a few points, before the timing; a
+// difference stops the program with exit 1.
 //
 // Instruction counts (only the timed region is instrumented, via
 // <valgrind/callgrind.h> when installed), e.g. one W4 method:
