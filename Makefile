@@ -163,7 +163,7 @@ bench-builders: $(BUILD)/bench_builders
 # moving for 100 frames with an overlap query per disk per frame (ours update() at
 # several margins, Box2D MoveProxy, Boost remove + insert), and k-nearest on 1M disks
 # (ours nearest(p, k) against Boost's nearest queries). Table to stdout and
-# bench/results_moving.txt; RUNS=n (default 3: about 13 minutes); QUICK=1 a few seconds,
+# bench/results_moving.txt; RUNS=n (default 3: 13-17 minutes); QUICK=1 a few seconds,
 # into $(BUILD)/results_moving.txt.
 # Exits 1 when the methods disagree or validate() fails.
 $(BUILD)/bench_moving: bench/moving.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUILD)

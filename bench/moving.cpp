@@ -4,7 +4,7 @@
 // Boost.Geometry's R-trees. Writes its tables to stdout (the Makefile keeps
 // the full run in bench/results_moving.txt).
 //
-//   make bench-moving            full run (about 13 minutes on the 2-core machine, 3 runs)
+//   make bench-moving            full run (13-17 minutes on the shared 2-core machine, 3 runs)
 //   make bench-moving QUICK=1    reduced run, a few seconds (build/results_moving.txt)
 //   build/bench_moving --help    every flag
 //
