@@ -32,7 +32,7 @@ TSAN_TESTS := $(BUILD)/test_threads_tsan
 # examples/*.cpp: README.txt's library snippets as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
-.PHONY: all test test-build test-build-gcc test-build-libcxx demo bench clean fuzz bench-dynamic bench-builders
+.PHONY: all test test-build test-build-gcc test-build-libcxx demo bench clean fuzz bench-dynamic bench-builders bench-moving
 
 all: bvh.out
 
@@ -116,8 +116,9 @@ BENCH_CXXFLAGS = -std=c++17 -O2 -DNDEBUG -Wall -Wextra
 BENCH_ARGS = $(if $(RUNS),--runs $(RUNS)) $(if $(filter-out 0,$(QUICK)),--quick)
 .PHONY: bench-peers
 
-bench: bvh.out $(BUILD)/bench
+bench: bvh.out $(BUILD)/bench $(BUILD)/bench_moving
 	$(BUILD)/bench $(BENCH_ARGS)
+	$(MAKE) --no-print-directory bench-moving
 
 # Which peers this machine has; the file changes (forcing a rebuild) only when that does.
 $(BUILD)/bench-peers: bench-peers
@@ -157,3 +158,24 @@ $(BUILD)/bench_builders: bench/builders.cpp $(HEADERS) | $(BUILD)
 
 bench-builders: $(BUILD)/bench_builders
 	$(BUILD)/bench_builders "$(COURSE_DATA)" bench/builders.svg | tee bench/results_builders.txt
+
+# ---- make bench-moving (bench/moving.cpp; make bench runs it too): W4, 100k disks
+# moving for 100 frames with an overlap query per disk per frame (ours update() at
+# several margins, Box2D MoveProxy, Boost remove + insert), and k-nearest on 1M disks
+# (ours nearest(p, k) against Boost's nearest queries). Table to stdout and
+# bench/results_moving.txt; RUNS=n (default 3: 13-17 minutes); QUICK=1 a few seconds,
+# into $(BUILD)/results_moving.txt.
+# Exits 1 when the methods disagree or validate() fails.
+$(BUILD)/bench_moving: bench/moving.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
+	@id=$$(sha1sum bvh.h | cut -c1-12); head=$$(git rev-parse --short HEAD 2>/dev/null || echo none); \
+	if [ "$$(git show HEAD:bvh.h 2>/dev/null | sha1sum | cut -c1-12)" = "$$id" ]; then st="as in HEAD $$head"; \
+	else st="modified since HEAD $$head"; fi; info="bvh.h sha1 $$id, $$st"; \
+	if [ "$$(cat $(BUILD)/bench-peers)" = box2d ]; then lib=-lbox2d; def=-DBENCH_HAVE_BOX2D_LIB; else lib=; def=; fi; \
+	echo "$(CXX) $(BENCH_CXXFLAGS) -pedantic $$def bench/moving.cpp -o $@ $$lib   ($$info)"; \
+	$(CXX) $(BENCH_CXXFLAGS) -pedantic $$def -DBENCH_BUILD_INFO="\"$$info\"" bench/moving.cpp -o $@ $$lib
+
+bench-moving: $(BUILD)/bench_moving
+	@out=$(if $(filter-out 0,$(QUICK)),$(BUILD)/results_moving.txt,bench/results_moving.txt); \
+	echo "$(BUILD)/bench_moving $(BENCH_ARGS) | tee $$out"; \
+	{ $(BUILD)/bench_moving $(BENCH_ARGS); echo $$? > $(BUILD)/bench_moving.rc; } | tee $$out; \
+	exit $$(cat $(BUILD)/bench_moving.rc)
