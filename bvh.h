@@ -106,7 +106,9 @@ namespace bvh_detail {
 /// still work.
 class IndexStack {
 public:
-  void push(int v) {
+  // (forced inline: in a large translation unit gcc stops inlining these,
+  // and every traversal calls them once per node)
+  BVH_ALWAYS_INLINE void push(int v) {
     if (size_ < kInline) {
       inline_[size_++] = v;
     } else {
@@ -114,14 +116,14 @@ public:
       ++size_;
     }
   }
-  int pop() {
+  BVH_ALWAYS_INLINE int pop() {
     --size_;
     if (size_ < kInline) return inline_[size_];
     int v = spill_.back();
     spill_.pop_back();
     return v;
   }
-  bool empty() const { return size_ == 0; }
+  BVH_ALWAYS_INLINE bool empty() const { return size_ == 0; }
 
 private:
   static constexpr std::size_t kInline = 96;
@@ -1886,9 +1888,10 @@ private:
     const Probe probe = Probe::around(box);
     walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
       const Node &node = nodes_[n];
-      if (node.num_children == 0) {
-        for (const T &s : shapes_of(n))
-          if (bvh_detail::box_of(s).overlaps(box) && !visit(s)) return kStop;
+      if (node.num_children == 0) { // (the slot from the hot node, as collision)
+        const T *s = pool_.data(leaf_slot(node));
+        for (std::int32_t i = 0; i < node.child[2]; ++i)
+          if (bvh_detail::box_of(s[i]).overlaps(box) && !visit(s[i])) return kStop;
         return 0;
       }
       unsigned hits, near;
