@@ -141,6 +141,7 @@ unit_tests() {
   run_suite test_threads "$BUILD/test_threads"
   run_suite test_intersect "$BUILD/test_intersect"
   run_suite test_dynamic "$BUILD/test_dynamic"
+  run_suite test_moving "$BUILD/test_moving"
   run_suite test_parse "$BUILD/test_parse"
   # collision() without SSE2 (BVH_NO_SIMD): the scalar fallback against the same brute force.
   BVH_TEST_SCALE=0.3 run_suite test_bvh_scalar "$BUILD/test_bvh_scalar"
@@ -152,6 +153,7 @@ sanitizers() {
   BVH_TEST_SCALE=0.3 run_suite test_threads_sanitized "$BUILD/test_threads_san"
   BVH_TEST_SCALE=0.3 run_suite test_intersect_sanitized "$BUILD/test_intersect_san"
   BVH_TEST_SCALE=0.5 run_suite test_dynamic_sanitized "$BUILD/test_dynamic_san"
+  BVH_TEST_SCALE=0.5 run_suite test_moving_sanitized "$BUILD/test_moving_san"
   BVH_TEST_SCALE=0.1 run_suite test_parse_sanitized "$BUILD/test_parse_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
@@ -174,6 +176,7 @@ portable() {
     run_suite test_bvh_libcxx "$BUILD/test_bvh_libcxx"
     run_suite test_intersect_libcxx "$BUILD/test_intersect_libcxx"
     run_suite test_dynamic_libcxx "$BUILD/test_dynamic_libcxx"
+    run_suite test_moving_libcxx "$BUILD/test_moving_libcxx"
     run_suite test_parse_libcxx "$BUILD/test_parse_libcxx"
     run_suite test_threads_libcxx "$BUILD/test_threads_libcxx"
   else
@@ -366,6 +369,7 @@ valgrind_layer() {
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_threads "${VG[@]}" "$BUILD/test_threads"
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_intersect"
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_dynamic"
+  BVH_TEST_SCALE=0.5 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_moving"
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_parse"
   run_case valgrind_bulk_build "${VG[@]}" ./bvh.out -i inputs/1000.triangles -o "$OUT/vg_bulk.html" \
     --depth_limit 4 --visualize --print_tree
