@@ -130,7 +130,7 @@ $(BUILD)/bench-peers: bench-peers
 bench-peers:
 
 # The results name the bvh.h they measured (its sha1, and whether HEAD has it).
-$(BUILD)/bench: bench/bench.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
+$(BUILD)/bench: bench/bench.cpp bench/peers.h $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
 	@id=$$(sha1sum bvh.h | cut -c1-12); head=$$(git rev-parse --short HEAD 2>/dev/null || echo none); \
 	if [ "$$(git show HEAD:bvh.h 2>/dev/null | sha1sum | cut -c1-12)" = "$$id" ]; then st="as in HEAD $$head"; \
 	else st="modified since HEAD $$head"; fi; info="bvh.h sha1 $$id, $$st"; \
@@ -166,7 +166,7 @@ bench-builders: $(BUILD)/bench_builders
 # bench/results_moving.txt; RUNS=n (default 3: 13-17 minutes); QUICK=1 a few seconds,
 # into $(BUILD)/results_moving.txt.
 # Exits 1 when the methods disagree or validate() fails.
-$(BUILD)/bench_moving: bench/moving.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
+$(BUILD)/bench_moving: bench/moving.cpp bench/peers.h $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
 	@id=$$(sha1sum bvh.h | cut -c1-12); head=$$(git rev-parse --short HEAD 2>/dev/null || echo none); \
 	if [ "$$(git show HEAD:bvh.h 2>/dev/null | sha1sum | cut -c1-12)" = "$$id" ]; then st="as in HEAD $$head"; \
 	else st="modified since HEAD $$head"; fi; info="bvh.h sha1 $$id, $$st"; \
