@@ -12,6 +12,7 @@
 //   for (const Disk &d : more) if (!tree.collision(d)) tree.insert(d);
 //   for (const Disk &d : tree) std::cout << d.getBox() << "\n";
 //   tree.statistics(/*print_tree=*/true);    // the course's report, to stdout
+//   auto h = tree.insert(d);  tree.update(h, moved);  // handles for moving shapes
 //
 // Complexity (n shapes, k = split_threshold): construct O(n log n)
 // (selection, not sorting, at every level; subtrees on several threads for
@@ -26,9 +27,11 @@
 //
 // Where to look: the build rule is `CourseRule` (`SahRule` the alternative),
 // which plugs into the one build loop `build_top_down`; the insertion
-// strategy is `choose_child` plus `rebalance_path`; every traversal is
-// `walk`; the leaves' shapes are in `bvh_detail::LeafPool`; the tree's box
-// arithmetic is
+// strategy is `choose_child` plus `rebalance_path`; every depth-first
+// traversal is `walk` (the best-first searches and the suspended search of
+// overlapping() keep their own order); the leaves' shapes are in `bvh_detail::LeafPool`, each with its
+// handle's id, which `loc_` maps back to a leaf (insert, update, erase by
+// handle); the tree's box arithmetic is
 // `bvh_detail::Box`; the intersection predicates are the free intersect()
 // of the shape type, found by argument-dependent lookup (this project's
 // exact ones are in intersect.h, which shapes.h brings in).
