@@ -1087,9 +1087,8 @@ public:
     return !walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
       const Node &node = nodes_[n];
       if (node.num_children == 0) {
-        const T *s = pool_.data(leaf_slot(node));
-        for (std::int32_t i = 0; i < node.child[2]; ++i)
-          if (intersect(s[i], shape)) return kStop;
+        for (const T &s : leaf_shapes(node))
+          if (intersect(s, shape)) return kStop;
         return 0;
       }
       unsigned hits, near;
@@ -1310,9 +1309,9 @@ public:
       if (node.num_children == 0) {
         // The leaf's slot from its hot node; the ids only once a shape is
         // near enough to need its tie-break.
-        const T *v = pool_.data(leaf_slot(node));
+        const bvh_detail::Span<const T> v = leaf_shapes(node);
         const std::uint32_t *ids = nullptr;
-        for (std::int32_t i = 0; i < node.child[2]; ++i) {
+        for (std::size_t i = 0; i < v.size(); ++i) {
           const double d = distance(p, v[i]);
           if (found.size() == k && d > found.front().first) continue;
           if (!ids) ids = pool_.ids(leaf_slot(node));
@@ -1614,6 +1613,11 @@ private:
   static typename bvh_detail::LeafPool<T>::Slot leaf_slot(const Node &node) {
     return {std::uint32_t(node.child[0]), std::uint32_t(node.child[1])};
   }
+  /// The shapes of leaf `node`, found from its hot record alone (queries
+  /// never read the cold Info of a leaf).
+  bvh_detail::Span<const T> leaf_shapes(const Node &node) const {
+    return {pool_.data(leaf_slot(node)), std::size_t(node.child[2])};
+  }
   struct Info { // cold: exact geometry, links, shapes
     Box box;
     std::int32_t parent = -1; // -1 for the root
@@ -1896,10 +1900,9 @@ private:
     const Probe probe = Probe::around(box);
     walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
       const Node &node = nodes_[n];
-      if (node.num_children == 0) { // (the slot from the hot node, as collision)
-        const T *s = pool_.data(leaf_slot(node));
-        for (std::int32_t i = 0; i < node.child[2]; ++i)
-          if (bvh_detail::box_of(s[i]).overlaps(box) && !visit(s[i])) return kStop;
+      if (node.num_children == 0) {
+        for (const T &s : leaf_shapes(node))
+          if (bvh_detail::box_of(s).overlaps(box) && !visit(s)) return kStop;
         return 0;
       }
       unsigned hits, near;

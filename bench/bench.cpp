@@ -241,15 +241,7 @@ Outcome discard_grid(const std::vector<Disk> &c) {
 
 // --- Boost.Geometry R-trees ---
 #if BENCH_HAVE_BOOST
-namespace bg = boost::geometry;
-namespace bgi = boost::geometry::index;
-using BPoint = bg::model::point<double, 2, bg::cs::cartesian>;
-using BBox = bg::model::box<BPoint>;
-using BValue = std::pair<BBox, std::uint32_t>;
 
-BBox to_boost(const BoundingBox &b) {
-  return BBox(BPoint(b.getMin().x, b.getMin().y), BPoint(b.getMax().x, b.getMax().y));
-}
 
 /// True when some value of `rt` whose box meets `b` (boundaries count, as
 /// in ours) holds a shape of `shapes` intersecting `s`: the query iterator

@@ -369,15 +369,9 @@ W4Run w4_box2d(const Scene &s) {
 
 // --- Boost.Geometry ---
 #if BENCH_HAVE_BOOST
-namespace bg = boost::geometry;
-namespace bgi = boost::geometry::index;
-using BPoint = bg::model::point<double, 2, bg::cs::cartesian>;
-using BBox = bg::model::box<BPoint>;
-using BValue = std::pair<BBox, std::uint32_t>;
 
 BBox to_boost(const Disk &d) {
-  const BoundingBox b = d.getBox();
-  return BBox(BPoint(b.getMin().x, b.getMin().y), BPoint(b.getMax().x, b.getMax().y));
+  return to_boost(d.getBox());
 }
 
 template <class Params> W4Run w4_boost(const Scene &s) {

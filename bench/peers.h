@@ -13,6 +13,18 @@
 #include <boost/geometry.hpp>
 #include <boost/geometry/index/rtree.hpp>
 #include <boost/iterator/function_output_iterator.hpp>
+#include "../shapes.h"
+#include <cstdint>
+#include <utility>
+// The peers' value type: a box and the shape's index.
+namespace bg = boost::geometry;
+namespace bgi = boost::geometry::index;
+using BPoint = bg::model::point<double, 2, bg::cs::cartesian>;
+using BBox = bg::model::box<BPoint>;
+using BValue = std::pair<BBox, std::uint32_t>;
+inline BBox to_boost(const BoundingBox &b) {
+  return BBox(BPoint(b.getMin().x, b.getMin().y), BPoint(b.getMax().x, b.getMax().y));
+}
 #else
 #define BENCH_HAVE_BOOST 0
 #endif
