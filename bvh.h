@@ -1,7 +1,7 @@
-// bvh.h — BVH<T>: a ternary bounding volume hierarchy over 2D shapes
-// (Disk, Triangle, Quad from shapes.h, Shape for mixed scenes, or a shape
-// type of your own), built in bulk or one shape at a time, answering "does
-// this shape touch anything stored?" with the shapes' own intersect().
+// bvh.h — BVH<T>: a bounding volume hierarchy over 2D shapes (Disk,
+// Triangle, Quad from shapes.h, Shape for mixed scenes, or a shape type of
+// your own), built in bulk or one shape at a time, answering "does this
+// shape touch anything stored?" with the shapes' own intersect().
 //
 // One self-contained header: it includes only the standard library and
 // "shapes.h", so it also compiles as a homework submission next to the
@@ -16,25 +16,38 @@
 //
 // Complexity (n shapes, k = split_threshold): construct O(n log n)
 // (selection, not sorting, at every level; subtrees on several threads for
-// large scenes, the same tree whatever their number); insert O(log n) amortised,
-// including the partial rebuilds that keep the tree balanced under any
-// insertion order; collision O(log n + shapes whose boxes touch the probe);
-// iteration O(1) amortised per step; update(handle, moved) O(depth) while
-// the shape stays inside its leaf's box (set_margin makes those boxes fat),
-// else an erase and an insert; nearest(p, k) O(log n + k) typically. Copy,
-// destruction and every traversal are iterative, so no input can overflow
-// the stack.
+// large scenes, the same tree whatever their number); insert O(log n)
+// amortised, including the partial rebuilds that keep the tree balanced
+// under any insertion order; collision O(log n + shapes whose boxes touch
+// the probe); iteration O(1) amortised per step; update(handle, moved)
+// O(depth) while the shape stays inside its leaf's box (set_margin makes
+// those boxes fat), else an erase and an insert; nearest(p, k) O(log n + k)
+// typically. Copy, destruction and every traversal are iterative, so no
+// input can overflow the stack.
 //
-// Where to look: the build rule is `CourseRule` (`SahRule` the alternative),
-// which plugs into the one build loop `build_top_down`; the insertion
-// strategy is `choose_child` plus `rebalance_path`; every depth-first
-// traversal is `walk` (the best-first searches and the suspended search of
-// overlapping() keep their own order); the leaves' shapes are in `bvh_detail::LeafPool`, each with its
-// handle's id, which `loc_` maps back to a leaf (insert, update, erase by
-// handle); the tree's box arithmetic is
-// `bvh_detail::Box`; the intersection predicates are the free intersect()
-// of the shape type, found by argument-dependent lookup (this project's
-// exact ones are in intersect.h, which shapes.h brings in).
+// The file, in reading order (docs/design.txt: what each section owns, its
+// invariants, and what it may touch):
+//   1. Primitives     box arithmetic, rounding to float, stacks, the block
+//                     vector, parallel_for, thirds(), the assertions
+//   2. Node storage   Node (what queries read, one cache line), Info (the
+//                     rest), NodeStore: the one writer of both copies of a
+//                     box; the node test (child_masks); walk(), the one
+//                     depth-first traversal
+//   3. Leaf store     LeafPool (the shapes) and LeafStore (the pool, the
+//                     leaves' records and the handle table, kept in step)
+//   4. Tree core      Core: the state every operation shares
+//   5. Builders       the build rules (CourseRule, SahRule, InOrderRule),
+//                     the one build loop, the threaded bulk plan, build_at()
+//   6. Changes        the insertion strategy (choose_child and the scapegoat
+//                     rebuilds), erase and its repairs, update, margins
+//   7. Queries        collision, box and shape queries, the suspended search
+//                     of overlapping(), the best-first engine (nearest(p),
+//                     nearest(p, k), first_hit), all pairs
+//   8. Diagnostics    the course's statistics report, its picture, validate
+//   9. BVH<T>         the public facade: each member a few lines over 2-8
+// The intersection predicates are the free intersect() of the shape type,
+// found by argument-dependent lookup (this project's exact ones are in
+// intersect.h, which shapes.h brings in).
 #ifndef BVH_BVH_H
 #define BVH_BVH_H
 
@@ -54,7 +67,6 @@
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <queue>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -72,6 +84,10 @@
 // distance.h), everything below compiles.
 #include "shapes.h"
 
+// ===========================================================================
+// 1. Primitives
+// ===========================================================================
+
 // BVH_ASSERT(condition, message): checks of the caller's preconditions
 // (iterators past the ends, erasing end() or another tree's iterator). On
 // unless NDEBUG is defined; then a failed check prints the message and
@@ -84,6 +100,16 @@
 #define BVH_ASSERT(condition, message)                                                                                \
   ((condition) ? (void)0 : ::bvh_detail::assertion_failed(message, #condition, __FILE__, __LINE__))
 #endif
+#endif
+
+// BVH_INVARIANT(condition, message): the tree's own invariants, checked
+// where one component hands over to another. A failure is a bug in bvh.h,
+// never the caller's: it aborts with the message. Off under NDEBUG.
+#ifdef NDEBUG
+#define BVH_INVARIANT(condition, message) ((void)0)
+#else
+#define BVH_INVARIANT(condition, message)                                                                             \
+  ((condition) ? (void)0 : ::bvh_detail::invariant_failed(message, #condition, __FILE__, __LINE__))
 #endif
 
 // The one traversal routine is inlined into each query that uses it, so
@@ -101,6 +127,12 @@ namespace bvh_detail {
 /// BVH_ASSERT's report: what was misused, where, then abort().
 [[noreturn]] inline void assertion_failed(const char *message, const char *condition, const char *file, int line) {
   std::fprintf(stderr, "%s:%d: BVH misuse: %s (%s)\n", file, line, message, condition);
+  std::abort();
+}
+
+/// BVH_INVARIANT's report, then abort().
+[[noreturn]] inline void invariant_failed(const char *message, const char *condition, const char *file, int line) {
+  std::fprintf(stderr, "%s:%d: BVH internal error: %s (%s)\n", file, line, message, condition);
   std::abort();
 }
 
@@ -128,8 +160,10 @@ public:
   }
   BVH_ALWAYS_INLINE bool empty() const { return size_ == 0; }
 
-private:
+  /// Entries held without allocating.
   static constexpr std::size_t kInline = 96;
+
+private:
   int inline_[kInline];
   std::size_t size_ = 0;
   std::vector<int> spill_;
@@ -137,9 +171,8 @@ private:
 
 /// The node arrays: a vector's interface (index, size, emplace_back) over
 /// fixed blocks of 512 elements. Growing never moves or copies what is
-/// stored, so a growing tree never holds two copies of its nodes at once
-/// (std::vector's doubling did: with its up to 2x capacity slack that was
-/// most of W2's 6x memory over the shapes), and the slack is one block.
+/// stored, so a growing tree never holds two copies of its nodes at once,
+/// as std::vector's doubling would, and the slack is at most one block.
 template <class X> class BlockVector {
 public:
   /// Empty, no block.
@@ -171,6 +204,11 @@ public:
       other.size_ = 0;
     }
     return *this;
+  }
+  /// Exchanges the contents.
+  void swap(BlockVector &other) noexcept {
+    blocks_.swap(other.blocks_);
+    std::swap(size_, other.size_);
   }
 
   /// Element i (< size()).
@@ -276,10 +314,6 @@ struct Box {
     x1 = std::max(x1, o.x1);
     y1 = std::max(y1, o.y1);
   }
-  /// Distance from (px, py) to the box: 0 inside or on it.
-  double distance_to(double px, double py) const {
-    return std::hypot(std::max({x0 - px, 0.0, px - x1}), std::max({y0 - py, 0.0, py - y1}));
-  }
   /// Where the ray (ox, oy) + t (dx, dy), t >= 0, enters the box: 0 when it
   /// starts inside, +inf when it misses (slab test).
   double ray_entry(double ox, double oy, double dx, double dy) const {
@@ -355,56 +389,12 @@ inline void append_box(std::string &out, const Box &b) {
   out += buf;
 }
 
-/// Node counts of a tree cut in thirds by count, as the course's rule and
-/// build_in_order cut: its shape depends on the counts alone, so the number
-/// of nodes under every node is known before anything is sorted. At each
-/// depth the splitting sizes differ by at most one, so every level of the
-/// table holds at most a few sizes.
-class Layout {
-public:
-  /// The table for n shapes at depth 0 (depth_limit <= 0: none).
-  Layout(std::size_t n, int split_threshold, int depth_limit)
-      : split_threshold_(std::size_t(split_threshold)), depth_limit_(depth_limit) {
-    levels_.push_back({Entry{n, 0}});
-    for (int d = 0; !levels_[std::size_t(d)].empty(); ++d) { // sizes met, top-down
-      std::vector<Entry> next;
-      for (const Entry &e : levels_[std::size_t(d)])
-        if (splits(e.size, d))
-          for (std::size_t g : thirds(e.size))
-            if (g != 0 && std::none_of(next.begin(), next.end(), [&](const Entry &x) { return x.size == g; }))
-              next.push_back(Entry{g, 0});
-      levels_.push_back(std::move(next));
-    }
-    for (std::size_t d = levels_.size(); d-- > 0;) // node counts, bottom-up
-      for (Entry &e : levels_[d]) {
-        e.nodes = 1;
-        if (splits(e.size, int(d)))
-          for (std::size_t g : thirds(e.size))
-            if (g != 0) e.nodes += nodes(g, int(d) + 1);
-      }
-  }
-  /// Nodes in the subtree of `size` shapes at `depth` (a size the build meets).
-  std::size_t nodes(std::size_t size, int depth) const {
-    for (const Entry &e : levels_[std::size_t(depth)])
-      if (e.size == size) return e.nodes;
-    return 0;
-  }
-
-private:
-  struct Entry {
-    std::size_t size, nodes;
-  };
-  bool splits(std::size_t m, int depth) const {
-    return m > split_threshold_ && (depth_limit_ <= 0 || depth < depth_limit_);
-  }
-  static std::array<std::size_t, 3> thirds(std::size_t m) {
-    const std::size_t base = m / 3, extra = m % 3;
-    return {base + (extra > 0), base + (extra > 1), base};
-  }
-  std::size_t split_threshold_;
-  int depth_limit_;
-  std::vector<std::vector<Entry>> levels_;
-};
+/// The course's split of m shapes into three groups: sizes that differ by
+/// at most one, larger first (empty groups when m < 3).
+inline std::array<std::size_t, 3> thirds(std::size_t m) {
+  const std::size_t base = m / 3, extra = m % 3;
+  return {base + (extra > 0), base + (extra > 1), base};
+}
 
 /// Calls f(0) ... f(count - 1), spread over `threads` threads (the caller
 /// is one of them). If a thread cannot be started, the others do its share;
@@ -435,6 +425,355 @@ template <class F> void parallel_for(std::size_t count, unsigned threads, F &&f)
   for (std::thread &t : pool) t.join();
   if (error) std::rethrow_exception(error);
 }
+
+/// A view of n contiguous X: a leaf's shapes.
+template <class X> struct Span {
+  X *first;
+  std::size_t count;
+  X *begin() const { return first; }
+  X *end() const { return first + count; }
+  std::size_t size() const { return count; }
+  bool empty() const { return count == 0; }
+  X &operator[](std::size_t i) const { return first[i]; }
+};
+
+/// A shape on its way from one leaf to others (a split, a rebuild), with its
+/// id.
+template <class T> struct Tagged {
+  T shape;
+  std::uint32_t id;
+};
+
+/// Working memory reused from one build to the next. Copies of a tree do
+/// not copy it: it holds nothing between calls.
+template <class X> struct Scratch {
+  X value;
+  Scratch() = default;
+  Scratch(const Scratch &) {}
+  Scratch &operator=(const Scratch &) { return *this; }
+};
+
+/// f(args...) as "go on?": true unless f returns a bool false.
+template <class F, class... A> bool keep_going(F &f, const A &...args) {
+  if constexpr (std::is_same<decltype(f(args...)), bool>::value)
+    return f(args...);
+  else {
+    f(args...);
+    return true;
+  }
+}
+
+/// Areas are reported relative to the course's 1000 x 1000 canvas.
+constexpr double kCanvasArea = 1000.0 * 1000.0;
+
+// ===========================================================================
+// 2. Node storage
+// ===========================================================================
+//
+// Nodes live in two parallel arrays. `Node` is what a query reads, one
+// cache line: an inner node's children's boxes in float, rounded outwards,
+// and their indices, so one line decides every child; a leaf's record of
+// where its shapes are. `Info` is the rest: the exact double box, parent,
+// depth and the subtree's shape count. A box is thus stored twice, the
+// exact one in the node's Info and its float copy in the parent's Node;
+// NodeStore::set_box is the only writer of either.
+
+/// Children per inner node: the course's ternary tree.
+constexpr int kWidth = 3;
+/// Bits 0 .. kWidth - 1: one per child.
+constexpr unsigned kAllChildren = (1u << kWidth) - 1;
+
+/// Where a leaf's shapes are: a slot of the leaf store (its class, i.e. a
+/// capacity of 1 << cls, and its index in that class) and how many shapes
+/// it holds. A leaf that owns no slot has cls == kNoSlot.
+struct LeafSlot {
+  static constexpr std::uint32_t kNoSlot = ~std::uint32_t(0);
+  std::uint32_t index = 0;
+  std::uint32_t cls = kNoSlot;
+  std::uint32_t count = 0;
+  /// True when the leaf owns a slot.
+  bool has_slot() const { return cls != kNoSlot; }
+};
+
+/// A node as queries read it.
+struct Node {
+  float lo_x[kWidth], lo_y[kWidth], hi_x[kWidth], hi_y[kWidth]; // children's boxes, rounded outwards
+  /// True for a leaf.
+  bool is_leaf() const { return num_children == 0; }
+  /// Inner node: the index of child c (< num_children).
+  int child(int c) const { return link_[c]; }
+  /// Leaf: where its shapes are.
+  LeafSlot leaf() const { return LeafSlot{std::uint32_t(link_[0]), std::uint32_t(link_[1]), std::uint32_t(link_[2])}; }
+  /// Makes the node a leaf whose shapes are at `s` (the leaf store's).
+  void set_leaf(const LeafSlot &s) {
+    num_children = 0;
+    link_[0] = std::int32_t(s.index);
+    link_[1] = std::int32_t(s.cls);
+    link_[2] = std::int32_t(s.count);
+  }
+  /// Inner node: child c is node n (the builders').
+  void set_child(int c, int n) { link_[c] = n; }
+
+  std::int32_t num_children = 0; // 0: a leaf
+
+private:
+  // An inner node's children, or a leaf's LeafSlot (index, class, count):
+  // a leaf's shapes are found from this line alone.
+  std::int32_t link_[kWidth] = {0, std::int32_t(LeafSlot::kNoSlot), 0};
+};
+// (the fields are in this order so that a 4-lane load of a float row stays
+// inside the node: child_masks masks the extra lane off)
+static_assert(kWidth == 3 && sizeof(Node) == 64, "a ternary Node is one 64-byte cache line");
+
+/// The rest of a node: exact geometry and links.
+class Info {
+public:
+  /// The node's exact box (NodeStore::set_box writes it).
+  const Box &box() const { return box_; }
+  std::int32_t parent = -1;     ///< -1 for the root
+  std::int32_t child_index = 0; ///< its index among the parent's children
+  std::int32_t depth = 0;       ///< the root's is 0
+  std::size_t count = 0;        ///< shapes in the subtree
+
+private:
+  friend class NodeStore;
+  Box box_;
+};
+
+/// The node arrays and the list of free nodes. Owns both copies of every
+/// box: set_box() writes a node's exact box and its parent's float copy
+/// together, so they never disagree.
+class NodeStore {
+public:
+  /// Node n's hot part.
+  Node &node(int n) { return nodes_[std::size_t(n)]; }
+  const Node &node(int n) const { return nodes_[std::size_t(n)]; }
+  /// Node n's cold part (its box through set_box only).
+  Info &info(int n) { return info_[std::size_t(n)]; }
+  const Info &info(int n) const { return info_[std::size_t(n)]; }
+  /// Node n's exact box.
+  const Box &box(int n) const { return info_[std::size_t(n)].box_; }
+
+  /// Sets node n's box: its exact box and, below the root, the float copy
+  /// in its parent, `b` rounded outwards.
+  void set_box(int n, const Box &b) {
+    Info &in = info(n);
+    in.box_ = b;
+    if (in.parent < 0) return;
+    Node &p = node(in.parent);
+    float f[4];
+    round_out(b, f);
+    const int c = in.child_index;
+    p.lo_x[c] = f[0];
+    p.lo_y[c] = f[1];
+    p.hi_x[c] = f[2];
+    p.hi_y[c] = f[3];
+  }
+  /// Grows node n's box to hold `b`; true when it grew.
+  bool extend_box(int n, const Box &b) {
+    if (box(n).contains(b)) return false;
+    Box grown = box(n);
+    grown.extend(b);
+    set_box(n, grown);
+    return true;
+  }
+
+  /// A node index, from the free list first; reset() must follow.
+  int allocate() {
+    if (!free_.empty()) {
+      const int n = free_.back();
+      free_.pop_back();
+      return n;
+    }
+    nodes_.emplace_back();
+    info_.emplace_back();
+    return int(nodes_.size() - 1);
+  }
+  /// Grows the arrays to `total` nodes (a laid-out build's).
+  void resize(std::size_t total) {
+    nodes_.resize(total);
+    info_.resize(total);
+  }
+  /// Node n as a fresh leaf with no slot and an empty box, at `depth`,
+  /// child `child_index` of `parent`. Its old slot must have been given
+  /// back.
+  void reset(int n, int depth, int parent, int child_index) {
+    BVH_INVARIANT(!node(n).is_leaf() || !node(n).leaf().has_slot(), "a reset leaf still owns a slot");
+    nodes_[std::size_t(n)] = Node();
+    Info &in = info(n);
+    in.box_ = Box();
+    in.depth = depth;
+    in.parent = parent;
+    in.child_index = child_index;
+    in.count = 0;
+  }
+  /// Puts node n on the free list (its slot given back); its children
+  /// links stay readable until it is reused.
+  void release(int n) {
+    BVH_INVARIANT(!node(n).is_leaf() || !node(n).leaf().has_slot(), "a freed leaf still owns a slot");
+    free_.push_back(n);
+  }
+
+  /// Nodes in the arrays, live or free.
+  std::size_t capacity() const { return nodes_.size(); }
+  /// Live nodes.
+  std::size_t live() const { return nodes_.size() - free_.size(); }
+  /// The free nodes.
+  const std::vector<int> &free_list() const { return free_; }
+  /// Drops every node.
+  void clear() {
+    nodes_.clear();
+    info_.clear();
+    free_.clear();
+  }
+  void swap(NodeStore &o) noexcept {
+    nodes_.swap(o.nodes_);
+    info_.swap(o.info_);
+    free_.swap(o.free_);
+  }
+
+  /// The leftmost leaf under n.
+  int leftmost_leaf(int n) const {
+    while (!node(n).is_leaf()) n = node(n).child(0);
+    return n;
+  }
+  /// The rightmost leaf under n.
+  int rightmost_leaf(int n) const {
+    while (!node(n).is_leaf()) n = node(n).child(node(n).num_children - 1);
+    return n;
+  }
+  /// The leaf after `n` in left-to-right order, -1 after the last.
+  int next_leaf(int n) const {
+    for (int parent; (parent = info(n).parent) >= 0; n = parent) {
+      const int c = info(n).child_index;
+      if (c + 1 < node(parent).num_children) return leftmost_leaf(node(parent).child(c + 1));
+    }
+    return -1;
+  }
+  /// The leaf before `n`, -1 before the first.
+  int prev_leaf(int n) const {
+    for (int parent; (parent = info(n).parent) >= 0; n = parent) {
+      const int c = info(n).child_index;
+      if (c > 0) return rightmost_leaf(node(parent).child(c - 1));
+    }
+    return -1;
+  }
+
+private:
+  BlockVector<Node> nodes_;
+  BlockVector<Info> info_;
+  std::vector<int> free_; // indices of unused nodes, reused first
+};
+
+/// A query box rounded outwards to float, and its centre, as child_masks
+/// reads them.
+struct Probe {
+  /// The probe of `box`.
+  static Probe around(const Box &box) {
+    float f[4];
+    round_out(box, f);
+    return Probe(f[0], f[1], f[2], f[3], 0.5f * (f[0] + f[2]), 0.5f * (f[1] + f[3]));
+  }
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+  // Broadcast to 4 lanes once per query, not once per node.
+  Probe(float lx, float ly, float hx, float hy, float mx, float my)
+      : lo_x(_mm_set1_ps(lx)), lo_y(_mm_set1_ps(ly)), hi_x(_mm_set1_ps(hx)), hi_y(_mm_set1_ps(hy)),
+        mid_x(_mm_set1_ps(mx)), mid_y(_mm_set1_ps(my)) {}
+  __m128 lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
+#else
+  Probe(float lx, float ly, float hx, float hy, float mx, float my)
+      : lo_x(lx), lo_y(ly), hi_x(hx), hi_y(hy), mid_x(mx), mid_y(my) {}
+  float lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
+#endif
+};
+
+/// The node test. For inner node `node`: bit c of `hits` is set when child
+/// c's box meets the probe's box, bit c of `near` when it also holds the
+/// probe's centre (a hit there is likely, so collision() visits those
+/// first). With SSE2 every child is tested in one 4-lane compare per bound
+/// (the fourth lane reads the next field of the node and is masked off).
+/// BVH_NO_SIMD forces the scalar path.
+inline void child_masks(const Node &node, const Probe &p, unsigned &hits, unsigned &near) {
+  const unsigned live = (1u << node.num_children) - 1;
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+  const __m128 lx = _mm_loadu_ps(node.lo_x), ly = _mm_loadu_ps(node.lo_y);
+  const __m128 hx = _mm_loadu_ps(node.hi_x), hy = _mm_loadu_ps(node.hi_y);
+  const __m128 meets = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.hi_x), _mm_cmple_ps(p.lo_x, hx)),
+                                  _mm_and_ps(_mm_cmple_ps(ly, p.hi_y), _mm_cmple_ps(p.lo_y, hy)));
+  const __m128 holds = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.mid_x), _mm_cmple_ps(p.mid_x, hx)),
+                                  _mm_and_ps(_mm_cmple_ps(ly, p.mid_y), _mm_cmple_ps(p.mid_y, hy)));
+  hits = unsigned(_mm_movemask_ps(meets)) & live;
+  near = unsigned(_mm_movemask_ps(holds)) & hits;
+#else
+  hits = 0;
+  near = 0;
+  for (int c = 0; c < kWidth; ++c) {
+    hits |= unsigned((node.lo_x[c] <= p.hi_x) & (p.lo_x <= node.hi_x[c]) & (node.lo_y[c] <= p.hi_y) &
+                     (p.lo_y <= node.hi_y[c]))
+            << c;
+    near |= unsigned((node.lo_x[c] <= p.mid_x) & (p.mid_x <= node.hi_x[c]) & (node.lo_y[c] <= p.mid_y) &
+                     (p.mid_y <= node.hi_y[c]))
+            << c;
+  }
+  hits &= live;
+  near &= hits;
+#endif
+}
+
+/// walk()'s visit result: bit c enters child c (c < num_children); bit
+/// kFirst + c enters it before every child of the low bits; kStop ends
+/// the walk.
+constexpr unsigned kFirst = 4u, kStop = 1u << 8;
+static_assert(kWidth <= int(kFirst), "the 'first' bits sit above the child bits");
+
+/// Pushes the children `enter` names (walk()'s visit result) so that they
+/// pop in order: the "first" group, then the rest, each left to right.
+BVH_ALWAYS_INLINE void push_children(IndexStack &stack, const Node &node, unsigned enter) {
+  const unsigned first = enter >> kFirst, later = enter & ~first & kAllChildren;
+  // Unrolled: this is collision()'s inner loop.
+  if (later & 4u) stack.push(node.child(2));
+  if (later & 2u) stack.push(node.child(1));
+  if (later & 1u) stack.push(node.child(0));
+  if (first & 4u) stack.push(node.child(2));
+  if (first & 2u) stack.push(node.child(1));
+  if (first & 1u) stack.push(node.child(0));
+}
+
+/// The one depth-first traversal (collision, the queries, find_equal, the
+/// rebuilds' gathering, every pre-order pass): from node `from`, each node
+/// visited before its children. visit(n) returns which children of n to
+/// enter (none for a leaf) or kStop. Returns false when a visit stopped it.
+/// overlapping()'s iterator runs the same steps with its stack kept between
+/// calls.
+template <class Visit> BVH_ALWAYS_INLINE bool walk(const NodeStore &nodes, int from, Visit &&visit) {
+  IndexStack stack;
+  int n = from;
+  for (;;) {
+    const unsigned enter = visit(n);
+    if (enter & kStop) return false;
+    const Node &node = nodes.node(n);
+    if (!node.is_leaf()) push_children(stack, node, enter);
+    if (stack.empty()) return true;
+    n = stack.pop();
+  }
+}
+
+/// walk()'s visit result that enters every child of `node`.
+inline unsigned all_children(const Node &node) { return (1u << node.num_children) - 1; }
+
+/// Calls f(n) on every node under `from` in pre-order (children left to
+/// right).
+template <class F> void for_each_preorder(const NodeStore &nodes, int from, F &&f) {
+  if (from < 0) return;
+  walk(nodes, from, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
+    f(n);
+    return all_children(nodes.node(n));
+  });
+}
+
+// ===========================================================================
+// 3. Leaf store
+// ===========================================================================
 
 /// The leaves' shapes: each leaf owns one slot, a contiguous run of shapes.
 /// Slot capacities are powers of two, with one pool per capacity (a
@@ -617,56 +956,1431 @@ private:
   std::vector<Class> classes_;
 };
 
-/// A query box rounded outwards to float, and its centre, as the node
-/// tests (BVH::child_masks) read them.
-struct Probe {
-  /// The probe of `box`.
-  static Probe around(const Box &box) {
-    float f[4];
-    round_out(box, f);
-    return Probe(f[0], f[1], f[2], f[3], 0.5f * (f[0] + f[2]), 0.5f * (f[1] + f[3]));
+/// The shapes of every leaf and the handle table, kept in step: each
+/// operation on a leaf's shapes also rewrites the leaf's record (its
+/// LeafSlot, in its Node) and the location of every id it moves, so no
+/// caller fixes either. A handle's id names one stored shape; locate(id)
+/// gives its leaf and position.
+template <class T> class LeafStore {
+public:
+  /// Where the shape of one id is.
+  struct Loc {
+    std::int32_t leaf = -1; ///< -1: the id is free
+    std::uint32_t index = 0;
+  };
+
+  /// The shapes of `leaf` (a leaf that owns a slot).
+  BVH_ALWAYS_INLINE Span<const T> shapes(const Node &leaf) const {
+    const LeafSlot s = leaf.leaf();
+    BVH_INVARIANT(leaf.is_leaf() && s.has_slot(), "shapes of a node that owns none");
+    return {pool_.data(pool_slot(s)), s.count};
   }
-#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
-  // Broadcast to 4 lanes once per query, not once per node.
-  Probe(float lx, float ly, float hx, float hy, float mx, float my)
-      : lo_x(_mm_set1_ps(lx)), lo_y(_mm_set1_ps(ly)), hi_x(_mm_set1_ps(hx)), hi_y(_mm_set1_ps(hy)),
-        mid_x(_mm_set1_ps(mx)), mid_y(_mm_set1_ps(my)) {}
-  __m128 lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
-#else
-  Probe(float lx, float ly, float hx, float hy, float mx, float my)
-      : lo_x(lx), lo_y(ly), hi_x(hx), hi_y(hy), mid_x(mx), mid_y(my) {}
-  float lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
-#endif
+  BVH_ALWAYS_INLINE Span<T> shapes(Node &leaf) {
+    const LeafSlot s = leaf.leaf();
+    BVH_INVARIANT(leaf.is_leaf() && s.has_slot(), "shapes of a node that owns none");
+    return {pool_.data(pool_slot(s)), s.count};
+  }
+  /// The ids of `leaf`'s shapes, in the same order.
+  const std::uint32_t *ids(const Node &leaf) const { return pool_.ids(pool_slot(leaf.leaf())); }
+  /// The number of shapes in the slot itself (validate compares it with
+  /// the leaf's record).
+  std::size_t slot_size(const Node &leaf) const { return pool_.size(pool_slot(leaf.leaf())); }
+
+  /// Appends `shape` with `id` to leaf n (node `leaf`), giving the leaf a
+  /// slot first if it has none; the id is located there.
+  template <class V> void push(Node &leaf, int n, V &&shape, std::uint32_t id) {
+    const LeafSlot had = leaf.leaf();
+    typename LeafPool<T>::Slot s = had.has_slot() ? pool_slot(had) : pool_.allocate(1);
+    if (!had.has_slot()) leaf.set_leaf(record(s));
+    pool_.push_back(s, std::forward<V>(shape), id);
+    loc_[id] = Loc{n, std::uint32_t(pool_.size(s) - 1)};
+    leaf.set_leaf(record(s));
+  }
+  /// Gives leaf n (node `leaf`, owning no slot) `count` shapes, moved from
+  /// take(i) (a T&) with ids id(i), in one slot of their size.
+  template <class Take, class Id> void fill(Node &leaf, int n, std::size_t count, Take &&take, Id &&id) {
+    BVH_INVARIANT(!leaf.leaf().has_slot(), "filling a leaf that owns a slot");
+    typename LeafPool<T>::Slot s = pool_.allocate(count);
+    leaf.set_leaf(record(s));
+    for (std::size_t i = 0; i < count; ++i) {
+      const std::uint32_t k = id(i);
+      pool_.push_back(s, std::move(take(i)), k);
+      loc_[k] = Loc{n, std::uint32_t(i)};
+    }
+    leaf.set_leaf(record(s));
+  }
+  /// Removes shape i of `leaf`, keeping the others' order (and their ids
+  /// located); returns its id, which stays taken.
+  std::uint32_t erase(Node &leaf, std::size_t i) {
+    const typename LeafPool<T>::Slot s = pool_slot(leaf.leaf());
+    const std::uint32_t id = pool_.ids(s)[i];
+    pool_.erase(s, i);
+    leaf.set_leaf(record(s));
+    const std::uint32_t *ids = pool_.ids(s);
+    for (std::size_t k = i, n = pool_.size(s); k < n; ++k) loc_[ids[k]].index = std::uint32_t(k);
+    return id;
+  }
+  /// Moves `node`'s shapes, with their ids, to the end of `out` and gives
+  /// its slot back (nothing for an inner node or a leaf without slot). The
+  /// ids stay taken; they are located again where the shapes land.
+  void take(Node &node, std::vector<Tagged<T>> &out) {
+    if (!node.is_leaf() || !node.leaf().has_slot()) return;
+    const Span<T> v = shapes(node);
+    const std::uint32_t *ids = this->ids(node);
+    for (std::size_t i = 0; i < v.size(); ++i) out.push_back(Tagged<T>{std::move(v[i]), ids[i]});
+    release(node);
+  }
+  /// Destroys `node`'s shapes and gives its slot back (nothing for an inner
+  /// node or a leaf without slot).
+  void release(Node &node) {
+    if (!node.is_leaf() || !node.leaf().has_slot()) return;
+    pool_.release(pool_slot(node.leaf()));
+    node.set_leaf(LeafSlot{});
+  }
+
+  /// A free id (one given back first), not yet located.
+  std::uint32_t new_id() {
+    if (!free_ids_.empty()) {
+      const std::uint32_t id = free_ids_.back();
+      free_ids_.pop_back();
+      return id;
+    }
+    if (loc_.size() == std::size_t(std::numeric_limits<std::uint32_t>::max()))
+      throw std::length_error("BVH::insert: more shapes than 32-bit handles can name");
+    loc_.push_back(Loc{});
+    return std::uint32_t(loc_.size() - 1);
+  }
+  /// Ids 0 .. n - 1 taken, for construct() (the store holds no id).
+  void take_first_ids(std::size_t n) {
+    BVH_INVARIANT(loc_.empty(), "construct() over ids in use");
+    loc_.resize(n);
+  }
+  /// Gives `id` back; `none_stored`: the tree is empty, so every id is
+  /// forgotten.
+  void free_id(std::uint32_t id, bool none_stored) {
+    loc_[id].leaf = -1;
+    if (none_stored) {
+      loc_.clear();
+      free_ids_.clear();
+    } else {
+      free_ids_.push_back(id);
+    }
+  }
+  /// True when `id` names a stored shape.
+  bool contains(std::uint32_t id) const { return id < loc_.size() && loc_[id].leaf >= 0; }
+  /// Where id's shape is (contains(id)).
+  const Loc &locate(std::uint32_t id) const { return loc_[id]; }
+  /// Ids in use or free.
+  std::size_t id_count() const { return loc_.size(); }
+  /// The ids given back.
+  const std::vector<std::uint32_t> &free_ids() const { return free_ids_; }
+
+  /// Destroys every shape; the ids stay taken (update() of the last shape
+  /// inserts it again under its id).
+  void clear_shapes() { pool_ = LeafPool<T>(); }
+  /// Destroys every shape and forgets every id.
+  void clear() {
+    clear_shapes();
+    loc_.clear();
+    free_ids_.clear();
+  }
+  void swap(LeafStore &o) noexcept {
+    std::swap(pool_, o.pool_);
+    loc_.swap(o.loc_);
+    free_ids_.swap(o.free_ids_);
+  }
+
+private:
+  static typename LeafPool<T>::Slot pool_slot(const LeafSlot &s) { return {s.index, s.cls}; }
+  LeafSlot record(const typename LeafPool<T>::Slot &s) const {
+    return LeafSlot{s.index, s.cls, std::uint32_t(pool_.size(s))};
+  }
+
+  LeafPool<T> pool_;
+  std::vector<Loc> loc_;                // by id: where its shape is
+  std::vector<std::uint32_t> free_ids_; // ids given back, reused first
 };
 
-/// A view of n contiguous X: a leaf's shapes.
-template <class X> struct Span {
-  X *first;
-  std::size_t count;
-  X *begin() const { return first; }
-  X *end() const { return first + count; }
-  std::size_t size() const { return count; }
-  bool empty() const { return count == 0; }
-  X &operator[](std::size_t i) const { return first[i]; }
+// ===========================================================================
+// 4. Tree core
+// ===========================================================================
+
+/// How construct() and the splits and rebuilds of insert() cut a node.
+enum class BuildRule {
+  course, ///< the course's rule (CourseRule): thirds by count along the longer side
+  sah     ///< binned surface area heuristic (SahRule): the cut of least area cost
 };
 
-/// A shape on its way from one leaf to others (a split, a rebuild), with its
-/// id.
-template <class T> struct Tagged {
+template <class T> struct BuildScratch;
+
+/// The state every operation shares: the nodes, the leaves' shapes and
+/// ids, the root, and the parameters of the tree. Sections 5 to 8 work on
+/// it; the facade BVH<T> owns one. Each part keeps its own invariants
+/// (NodeStore the two copies of a box, LeafStore the records and ids); the
+/// operations here keep what spans them: a node is reset or freed only
+/// with its slot given back, and a node's box is its subtree's.
+template <class T> struct Core {
+  NodeStore nodes;
+  LeafStore<T> leaves;
+  int root = -1;         ///< -1: empty
+  std::size_t size = 0;  ///< shapes stored
+  int split_threshold;   ///< at least 1
+  int depth_limit;       ///< 0: unlimited
+  BuildRule rule = BuildRule::course;
+  unsigned build_threads = 0; ///< 0: hardware concurrency
+  double margin = 0;          ///< leaves' boxes are their shapes' grown by this
+  Scratch<BuildScratch<T>> scratch;
+
+  Core(int split_threshold_, int depth_limit_) : split_threshold(split_threshold_), depth_limit(depth_limit_) {}
+
+  /// Exchanges everything but the scratch memory.
+  void swap(Core &o) noexcept {
+    nodes.swap(o.nodes);
+    leaves.swap(o.leaves);
+    std::swap(root, o.root);
+    std::swap(size, o.size);
+    std::swap(split_threshold, o.split_threshold);
+    std::swap(depth_limit, o.depth_limit);
+    std::swap(rule, o.rule);
+    std::swap(build_threads, o.build_threads);
+    std::swap(margin, o.margin);
+  }
+
+  /// Drops every node and shape but keeps the ids.
+  void clear_nodes() {
+    nodes.clear();
+    leaves.clear_shapes();
+    root = -1;
+    size = 0;
+  }
+  /// Drops everything stored; the parameters stay.
+  void clear() {
+    clear_nodes();
+    leaves.clear();
+  }
+
+  /// True when a node at `depth` may split.
+  bool may_split_at(int depth) const { return depth_limit == 0 || depth < depth_limit; }
+  /// True when a node of `count` shapes at `depth` becomes a leaf.
+  bool is_leaf_size(std::size_t count, int depth) const {
+    return count <= std::size_t(split_threshold) || !may_split_at(depth);
+  }
+
+  /// A fresh leaf at `depth`, child `child_index` of `parent`.
+  int new_node(int depth, int parent, int child_index) {
+    const int n = nodes.allocate();
+    nodes.reset(n, depth, parent, child_index);
+    return n;
+  }
+  /// Gives node n's slot back and puts it on the free list.
+  void free_node(int n) {
+    leaves.release(nodes.node(n));
+    nodes.release(n);
+  }
+
+  /// A leaf's box for shapes whose box is `tight`: grown by the margin.
+  Box fat(const Box &tight) const { return margin > 0 ? tight.grown(margin) : tight; }
+  /// Node n's box recomputed from its shapes (leaf) or its children's boxes.
+  Box fitted_box(int n) const {
+    Box box;
+    const Node &node = nodes.node(n);
+    if (node.is_leaf()) {
+      for (const T &s : leaves.shapes(node)) box.extend(box_of(s));
+      return fat(box);
+    }
+    for (int c = 0; c < node.num_children; ++c)
+      if (nodes.info(node.child(c)).count != 0) box.extend(nodes.box(node.child(c)));
+    return box;
+  }
+  /// Refits the boxes from node n up, stopping where a box is unchanged.
+  void refit_up(int n) {
+    for (; n >= 0; n = nodes.info(n).parent) {
+      const Box box = fitted_box(n);
+      if (box == nodes.box(n)) return;
+      nodes.set_box(n, box);
+    }
+  }
+};
+
+// ===========================================================================
+// 5. Builders
+// ===========================================================================
+//
+// construct(), a leaf's split, and the partial rebuilds of insert and erase
+// all run one loop, build_top_down(). Per node it computes the box and count
+// of the node's items and makes a leaf when the course says so (at most
+// split_threshold items, or at depth_limit); otherwise the rule cuts the
+// items into kWidth consecutive groups and each non-empty group becomes a
+// child, children built left to right. A rule supplies only its items,
+// box(i), shape(i), id(i), order_leaf(task) (a leaf's shapes are then taken
+// in item order) and cut(task, box, cut, child_state): CourseRule (the
+// course's), SahRule (binned SAH) and InOrderRule (thirds in the given
+// order, for erase). build_at() is the entry for a subtree, construct() for
+// the whole tree; only construct() lays nodes out in advance and threads.
+
+/// True when T stores its centre (getCenter() returns a reference, as
+/// Disk's does): items then read it from the shape instead of caching a
+/// copy, which makes the items the selections move smaller.
+template <class T>
+constexpr bool kCenterStored = std::is_reference<decltype(std::declval<const T &>().getCenter())>::value;
+/// One shape during a course build, with its centre computed once (a
+/// triangle's or quad's centre is a sum).
+template <class T> struct CachedCenter {
+  XY center;
   T shape;
-  std::uint32_t id;
+  std::uint32_t index; // input position: the last tie-break
+  const XY &centre() const { return center; }
+};
+/// One shape during a course build, whose centre it stores.
+template <class T> struct StoredCenter {
+  T shape;
+  std::uint32_t index;
+  decltype(auto) centre() const { return shape.getCenter(); }
+};
+template <class T> using Item = typename std::conditional<kCenterStored<T>, StoredCenter<T>, CachedCenter<T>>::type;
+template <class T> Item<T> make_item(const T &shape, std::uint32_t index) {
+  if constexpr (kCenterStored<T>)
+    return Item<T>{shape, index};
+  else
+    return Item<T>{XY::of(shape.getCenter()), shape, index};
+}
+
+/// The order of one node: see CourseRule.
+struct Key {
+  int axis;       // 0: x, 1: y
+  bool other_too; // compare the other axis before the input position
+};
+/// Key's order with the axis and the chain fixed at compile time: the
+/// selections spend most of a build in this comparison, and a runtime
+/// axis costs a branch per coordinate read.
+template <int Axis, bool OtherToo> struct Order {
+  template <class I> bool operator()(const I &a, const I &b) const {
+    const auto &p = a.centre();
+    const auto &q = b.centre();
+    const double pa = Axis == 0 ? p.x : p.y, qa = Axis == 0 ? q.x : q.y;
+    if (pa != qa) return pa < qa;
+    if (OtherToo) {
+      const double po = Axis == 0 ? p.y : p.x, qo = Axis == 0 ? q.y : q.x;
+      if (po != qo) return po < qo;
+    }
+    return a.index < b.index;
+  }
+};
+/// Calls f(Order<...>()) for `key`.
+template <class F> void with_order(const Key &key, F &&f) {
+  if (key.axis == 0) {
+    if (key.other_too) f(Order<0, true>());
+    else f(Order<0, false>());
+  } else {
+    if (key.other_too) f(Order<1, true>());
+    else f(Order<1, false>());
+  }
+}
+
+/// One node to build: its items [begin, end) in the rule's array, the
+/// rule's state for it, and `block`: with a precomputed layout
+/// (construct), the index where its children go; -1 when nodes come from
+/// new_node().
+template <class State> struct BuildTask {
+  int node;
+  std::size_t begin, end;
+  int block;
+  State state;
 };
 
-/// Working memory reused from one build to the next. Copies of a tree do
-/// not copy it: it holds nothing between calls.
-template <class X> struct Scratch {
-  X value;
-  Scratch() = default;
-  Scratch(const Scratch &) {}
-  Scratch &operator=(const Scratch &) { return *this; }
+/// The course's cut of [begin, end) into thirds(): cut[g] .. cut[g + 1] is
+/// group g.
+inline void cut_in_thirds(std::size_t begin, std::size_t end, std::size_t cut[4]) {
+  const std::array<std::size_t, 3> size = thirds(end - begin);
+  cut[0] = begin;
+  for (int g = 0; g < 3; ++g) cut[g + 1] = cut[g] + size[std::size_t(g)];
+}
+
+/// The build rule (the course's, which its expected output follows). A
+/// node's shapes are ordered by their centre on the longer side of its box
+/// (x when dx >= dy), ties kept in their current order, and cut in thirds
+/// (cut_in_thirds); a leaf keeps its shapes in its parent's order.
+///
+/// Doing this with a stable sort at every node costs O(n log^2 n). The
+/// same groups come from selection (nth_element) if the comparison is a
+/// strict total order equal to the stable one. The stable order at a node
+/// compares centres on its axis, then on its parent's axis, its
+/// grandparent's, ..., then the input position; with only two axes, every
+/// repeat of an axis in that chain compares coordinates already found
+/// equal, so the chain shrinks to (this axis, the other axis if any
+/// ancestor used it, input position). Selection gives O(n log n) overall.
+/// Each shape travels with its centre and input position (Item), so the
+/// selections, box scans and the final copy into the leaves stream through
+/// memory instead of chasing indices.
+template <class T> class CourseRule {
+public:
+  struct State {
+    unsigned axes_used; // bit 0: x, bit 1: y, by the node's ancestors
+    Key parent_key;     // the order the node's shapes arrive in
+    bool has_parent_key;
+  };
+  /// `src`: the shapes the items were made from, for their ids; nullptr
+  /// when the ids are the input positions (construct).
+  CourseRule(std::vector<Item<T>> &items, const std::vector<Tagged<T>> *src) : items_(items), src_(src) {}
+  Box box(std::size_t i) const { return box_of(items_[i].shape); }
+  T &shape(std::size_t i) { return items_[i].shape; }
+  std::uint32_t id(std::size_t i) const { return src_ ? (*src_)[items_[i].index].id : items_[i].index; }
+  void order_leaf(const BuildTask<State> &t) {
+    // Selection left the range unordered; restore the parent's order.
+    const auto first = items_.begin() + long(t.begin), last = items_.begin() + long(t.end);
+    if (t.state.has_parent_key)
+      with_order(t.state.parent_key, [&](auto order) { std::sort(first, last, order); });
+    else
+      std::sort(first, last, [](const Item<T> &a, const Item<T> &b) { return a.index < b.index; });
+  }
+  void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State child[3]) {
+    const int axis = box.dx() >= box.dy() ? 0 : 1;
+    const Key key{axis, (t.state.axes_used & (2u >> axis)) != 0};
+    cut_in_thirds(t.begin, t.end, cut);
+    const auto first = items_.begin();
+    with_order(key, [&](auto order) {
+      std::nth_element(first + long(cut[0]), first + long(cut[1]), first + long(cut[3]), order);
+      std::nth_element(first + long(cut[1]), first + long(cut[2]), first + long(cut[3]), order);
+    });
+    for (int g = 0; g < 3; ++g) child[g] = State{t.state.axes_used | (1u << axis), key, true};
+  }
+  static State root_state() { return State{0u, Key{0, false}, false}; }
+
+private:
+  std::vector<Item<T>> &items_;
+  const std::vector<Tagged<T>> *src_;
 };
+
+/// The items of SahRule and InOrderRule: the shapes themselves, taken in
+/// their current order at a leaf; no state carried down.
+template <class T> class ShapesAsItems {
+public:
+  struct State {};
+  explicit ShapesAsItems(std::vector<Tagged<T>> &shapes) : v_(shapes) {}
+  Box box(std::size_t i) const { return box_of(v_[i].shape); }
+  T &shape(std::size_t i) { return v_[i].shape; }
+  std::uint32_t id(std::size_t i) const { return v_[i].id; }
+  void order_leaf(const BuildTask<State> &) {}
+  static State root_state() { return State{}; }
+
+protected:
+  std::vector<Tagged<T>> &v_;
+};
+
+/// Bins per axis of the SAH build.
+constexpr int kSahBins = 16;
+
+/// The alternative build rule, binned SAH for a ternary tree. Leaves are
+/// where the course's rule makes them. Otherwise the shapes' centres are
+/// binned into kSahBins slots along each axis, and the node is cut at the
+/// two bin boundaries, on the axis, that minimise the surface area
+/// heuristic sum over the 3 groups of (box area x shape count), the
+/// quantity the statistics print; every group must be non-empty. When the
+/// centres fill fewer than 3 bins on both axes (clusters, duplicates), it
+/// falls back to the course's cut into thirds by count on the longer side.
+/// O(n) per level plus O(kSahBins^2) per node: O(n log n) for a balanced
+/// result.
+template <class T> class SahRule : public ShapesAsItems<T> {
+public:
+  using State = typename ShapesAsItems<T>::State;
+  using ShapesAsItems<T>::ShapesAsItems;
+  void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State *) {
+    std::vector<Tagged<T>> &v = this->v_; // (a dependent base: named through this)
+    Box centres;
+    for (std::size_t i = t.begin; i < t.end; ++i) centres.extend(Box::at(v[i].shape.getCenter()));
+    int best_axis = -1, best_i = 0, best_j = 0;
+    best_cut(v, t, centres, best_axis, best_i, best_j);
+    const auto first = v.begin() + long(t.begin), last = v.begin() + long(t.end);
+    if (best_axis >= 0) {
+      const double lo = best_axis ? centres.y0 : centres.x0;
+      const double extent = (best_axis ? centres.y1 : centres.x1) - lo;
+      const auto mid1 =
+          std::partition(first, last, [&](const Tagged<T> &s) { return bin_of(s, best_axis, lo, extent) < best_i; });
+      const auto mid2 =
+          std::partition(mid1, last, [&](const Tagged<T> &s) { return bin_of(s, best_axis, lo, extent) < best_j; });
+      cut[0] = t.begin;
+      cut[1] = std::size_t(mid1 - v.begin());
+      cut[2] = std::size_t(mid2 - v.begin());
+      cut[3] = t.end;
+    } else {
+      // Fallback: thirds by count along the longer side of the box.
+      const int axis = box.dx() >= box.dy() ? 0 : 1;
+      cut_in_thirds(t.begin, t.end, cut);
+      auto less = [axis](const Tagged<T> &a, const Tagged<T> &b) {
+        return axis ? a.shape.getCenter().y < b.shape.getCenter().y : a.shape.getCenter().x < b.shape.getCenter().x;
+      };
+      std::nth_element(first, v.begin() + long(cut[1]), last, less);
+      std::nth_element(v.begin() + long(cut[1]), v.begin() + long(cut[2]), last, less);
+    }
+  }
+
+private:
+  /// The (axis, first cut, second cut) of least SAH cost over both axes:
+  /// groups are bins [0, i), [i, j), [j, kSahBins); axis -1 when no cut
+  /// leaves every group non-empty.
+  static void best_cut(const std::vector<Tagged<T>> &v, const BuildTask<State> &t, const Box &centres, int &best_axis,
+                       int &best_i, int &best_j) {
+    double best_cost = std::numeric_limits<double>::infinity();
+    for (int axis = 0; axis < 2; ++axis) {
+      const double lo = axis ? centres.y0 : centres.x0;
+      const double extent = (axis ? centres.y1 : centres.x1) - lo;
+      if (!(extent > 0)) continue;
+      Box bin_box[kSahBins];
+      std::size_t bin_count[kSahBins] = {};
+      for (std::size_t i = t.begin; i < t.end; ++i) {
+        const int b = bin_of(v[i], axis, lo, extent);
+        bin_box[b].extend(box_of(v[i].shape));
+        ++bin_count[b];
+      }
+      Box prefix[kSahBins + 1], suffix[kSahBins + 1];
+      std::size_t prefix_n[kSahBins + 1] = {}, suffix_n[kSahBins + 1] = {};
+      for (int b = 0; b < kSahBins; ++b) {
+        prefix[b + 1] = prefix[b];
+        prefix[b + 1].extend(bin_box[b]);
+        prefix_n[b + 1] = prefix_n[b] + bin_count[b];
+      }
+      for (int b = kSahBins - 1; b >= 0; --b) {
+        suffix[b] = suffix[b + 1];
+        suffix[b].extend(bin_box[b]);
+        suffix_n[b] = suffix_n[b + 1] + bin_count[b];
+      }
+      for (int i = 1; i < kSahBins - 1; ++i) {
+        if (prefix_n[i] == 0) continue;
+        Box middle;
+        std::size_t middle_n = 0;
+        for (int j = i + 1; j < kSahBins; ++j) {
+          middle.extend(bin_box[j - 1]);
+          middle_n += bin_count[j - 1];
+          if (middle_n == 0 || suffix_n[j] == 0) continue;
+          const double cost = prefix[i].area() * double(prefix_n[i]) + middle.area() * double(middle_n) +
+                              suffix[j].area() * double(suffix_n[j]);
+          if (cost < best_cost) {
+            best_cost = cost;
+            best_axis = axis;
+            best_i = i;
+            best_j = j;
+          }
+        }
+      }
+    }
+  }
+  static int bin_of(const Tagged<T> &s, int axis, double lo, double extent) {
+    const double c = axis ? s.shape.getCenter().y : s.shape.getCenter().x;
+    return std::min(kSahBins - 1, int(double(kSahBins) * (c - lo) / extent));
+  }
+};
+
+/// Thirds in the order given, without sorting: where leaf order must
+/// survive (erase). Shapes that come out of a subtree in leaf order are
+/// already spatially grouped.
+template <class T> class InOrderRule : public ShapesAsItems<T> {
+public:
+  using State = typename ShapesAsItems<T>::State;
+  using ShapesAsItems<T>::ShapesAsItems;
+  void cut(const BuildTask<State> &t, const Box &, std::size_t cut[4], State *) { cut_in_thirds(t.begin, t.end, cut); }
+};
+
+/// Node counts of a tree cut in thirds by count, as CourseRule and
+/// InOrderRule cut: its shape depends on the counts alone, so the number
+/// of nodes under every node is known before anything is sorted. At each
+/// depth the splitting sizes differ by at most one, so every level of the
+/// table holds at most a few sizes.
+class Layout {
+public:
+  /// The table for n shapes at depth 0 (depth_limit <= 0: none).
+  Layout(std::size_t n, int split_threshold, int depth_limit)
+      : split_threshold_(std::size_t(split_threshold)), depth_limit_(depth_limit) {
+    levels_.push_back({Entry{n, 0}});
+    for (int d = 0; !levels_[std::size_t(d)].empty(); ++d) { // sizes met, top-down
+      std::vector<Entry> next;
+      for (const Entry &e : levels_[std::size_t(d)])
+        if (splits(e.size, d))
+          for (std::size_t g : thirds(e.size))
+            if (g != 0 && std::none_of(next.begin(), next.end(), [&](const Entry &x) { return x.size == g; }))
+              next.push_back(Entry{g, 0});
+      levels_.push_back(std::move(next));
+    }
+    for (std::size_t d = levels_.size(); d-- > 0;) // node counts, bottom-up
+      for (Entry &e : levels_[d]) {
+        e.nodes = 1;
+        if (splits(e.size, int(d)))
+          for (std::size_t g : thirds(e.size))
+            if (g != 0) e.nodes += nodes(g, int(d) + 1);
+      }
+  }
+  /// Nodes in the subtree of `size` shapes at `depth` (a size the build meets).
+  std::size_t nodes(std::size_t size, int depth) const {
+    for (const Entry &e : levels_[std::size_t(depth)])
+      if (e.size == size) return e.nodes;
+    return 0;
+  }
+
+private:
+  struct Entry {
+    std::size_t size, nodes;
+  };
+  bool splits(std::size_t m, int depth) const {
+    return m > split_threshold_ && (depth_limit_ <= 0 || depth < depth_limit_);
+  }
+  std::size_t split_threshold_;
+  int depth_limit_;
+  std::vector<std::vector<Entry>> levels_;
+};
+
+/// The memory a course build reuses from one build to the next.
+template <class T> struct BuildScratch {
+  std::vector<Item<T>> items;
+  std::vector<BuildTask<typename CourseRule<T>::State>> tasks;
+};
+
+/// The reused item array, filled with shape(i) for i < n (input
+/// position = i).
+template <class T, class Shape> std::vector<Item<T>> &fill_items(Core<T> &core, std::size_t n, Shape &&shape) {
+  std::vector<Item<T>> &items = core.scratch.value.items;
+  // (clear and append, not resize: T need not be default-constructible)
+  items.clear();
+  items.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) items.push_back(make_item(shape(i), std::uint32_t(i)));
+  return items;
+}
+
+/// Gives leaf n (owning no slot) the rule's items [begin, end), moved.
+template <class T, class Rule> void fill_leaf(Core<T> &core, int n, Rule &rule, std::size_t begin, std::size_t end) {
+  core.leaves.fill(
+      core.nodes.node(n), n, end - begin, [&](std::size_t i) -> T & { return rule.shape(begin + i); },
+      [&](std::size_t i) { return rule.id(begin + i); });
+}
+
+/// The shared loop: builds every task of `tasks` (and what they spawn) by
+/// `rule`. Tasks whose node is at depth `defer_depth` are not built but
+/// moved to `*deferred` (construct's parallel part builds them). With a
+/// `layout`, children go where it says and leaves get their shapes later
+/// (gather_leaves); without, nodes come from new_node().
+template <class T, class Rule>
+void build_top_down(Core<T> &core, std::vector<BuildTask<typename Rule::State>> &tasks, Rule &rule,
+                    const Layout *layout, int defer_depth = -1,
+                    std::vector<BuildTask<typename Rule::State>> *deferred = nullptr) {
+  using Task = BuildTask<typename Rule::State>;
+  NodeStore &nodes = core.nodes;
+  while (!tasks.empty()) {
+    const Task t = tasks.back();
+    tasks.pop_back();
+    const int depth = nodes.info(t.node).depth;
+    if (deferred && depth == defer_depth) {
+      deferred->push_back(t);
+      continue;
+    }
+    BVH_INVARIANT(nodes.node(t.node).is_leaf() && !nodes.node(t.node).leaf().has_slot(),
+                  "a build starts at a leaf that owns no slot");
+    Box box;
+    for (std::size_t i = t.begin; i < t.end; ++i) box.extend(rule.box(i));
+    box = core.fat(box); // (a grown union is the union of the grown boxes)
+    const std::size_t n = t.end - t.begin;
+    nodes.set_box(t.node, box);
+    nodes.info(t.node).count = n;
+    if (core.is_leaf_size(n, depth)) {
+      rule.order_leaf(t);
+      // A laid-out build (construct) gathers every leaf's shapes at the
+      // end, in one pass, with no thread touching the pool.
+      if (!layout) fill_leaf(core, t.node, rule, t.begin, t.end);
+      continue;
+    }
+    std::size_t cut[4];
+    typename Rule::State state[3];
+    rule.cut(t, box, cut, state);
+    Task child[3];
+    int children = 0;
+    const int groups = (cut[1] > cut[0]) + (cut[2] > cut[1]) + (cut[3] > cut[2]);
+    int grandchildren = t.block + groups; // laid out: where the next child's children go
+    for (int g = 0; g < 3; ++g) {
+      if (cut[g + 1] == cut[g]) continue;
+      int c, block = -1;
+      if (layout) {
+        c = t.block + children;
+        nodes.reset(c, depth + 1, t.node, children);
+        block = grandchildren;
+        grandchildren += int(layout->nodes(cut[g + 1] - cut[g], depth + 1)) - 1;
+      } else {
+        c = core.new_node(depth + 1, t.node, children);
+      }
+      nodes.node(t.node).set_child(children, c);
+      child[children++] = Task{c, cut[g], cut[g + 1], block, state[g]};
+    }
+    nodes.node(t.node).num_children = children;
+    for (int c = children - 1; c >= 0; --c) tasks.push_back(child[c]); // built left to right
+  }
+}
+
+/// How build_at() cuts.
+enum class Cut {
+  by_rule, ///< the tree's build rule
+  in_order ///< InOrderRule: iteration order survives (erase's repairs)
+};
+
+/// The one entry for building a subtree: at leaf `at` (owning no slot),
+/// from `shapes` (reordered). With a margin, leaves that update() left
+/// larger than their shapes come out fitted again, so the node built may
+/// have shrunk: the boxes above it shrink too.
+template <class T> void build_at(Core<T> &core, int at, std::vector<Tagged<T>> &shapes, Cut how) {
+  const Box before = core.nodes.box(at);
+  if (how == Cut::in_order) {
+    InOrderRule<T> rule(shapes);
+    std::vector<BuildTask<typename InOrderRule<T>::State>> tasks{
+        {at, 0, shapes.size(), -1, InOrderRule<T>::root_state()}};
+    build_top_down(core, tasks, rule, nullptr);
+  } else if (core.rule == BuildRule::sah) {
+    SahRule<T> rule(shapes);
+    std::vector<BuildTask<typename SahRule<T>::State>> tasks{{at, 0, shapes.size(), -1, SahRule<T>::root_state()}};
+    build_top_down(core, tasks, rule, nullptr);
+  } else {
+    CourseRule<T> rule(fill_items(core, shapes.size(), [&](std::size_t i) -> const T & { return shapes[i].shape; }),
+                       &shapes);
+    std::vector<BuildTask<typename CourseRule<T>::State>> &tasks = core.scratch.value.tasks;
+    tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule<T>::root_state()});
+    build_top_down(core, tasks, rule, nullptr);
+  }
+  if (core.nodes.box(at) != before && core.nodes.info(at).parent >= 0) core.refit_up(core.nodes.info(at).parent);
+}
+
+/// Rebuilds the subtree at `at` from its own shapes, taken in leaf order.
+template <class T> void rebuild(Core<T> &core, int at, Cut how) {
+  std::vector<Tagged<T>> shapes;
+  shapes.reserve(core.nodes.info(at).count);
+  walk(core.nodes, at, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
+    Node &node = core.nodes.node(n);
+    core.leaves.take(node, shapes);
+    const unsigned enter = all_children(node);
+    if (n != at) core.free_node(n); // (its links stay, so the walk goes on)
+    return enter;
+  });
+  core.nodes.node(at).set_leaf(LeafSlot{});
+  build_at(core, at, shapes, how);
+}
+
+/// Scenes smaller than this are built without threads.
+constexpr std::size_t kParallelMin = std::size_t(1) << 16;
+
+/// The threads a build may use: `wanted`, or with 0 the hardware's.
+inline unsigned threads_for(unsigned wanted) {
+  if (wanted != 0) return wanted;
+  const unsigned hw = std::thread::hardware_concurrency();
+  return hw == 0 ? 1 : hw;
+}
+
+/// construct()'s course build. The rule's tree shape depends on counts
+/// alone, so every node gets its index in advance (Layout): in pre-order,
+/// each node's children adjacent, each subtree contiguous; and subtrees far
+/// enough down are independent, so threads can build them at once. Last,
+/// the leaves, in pre-order, take consecutive ranges of the items.
+template <class T> void construct_by_course_rule(Core<T> &core, const std::vector<T> &elements) {
+  const Layout layout(core.size, core.split_threshold, core.depth_limit);
+  core.nodes.resize(layout.nodes(core.size, 0));
+  core.root = 0;
+  core.nodes.reset(0, 0, -1, 0);
+  CourseRule<T> rule(fill_items(core, elements.size(), [&](std::size_t i) -> const T & { return elements[i]; }),
+                     nullptr);
+  using Task = BuildTask<typename CourseRule<T>::State>;
+  std::vector<Task> tasks{{0, 0, core.size, 1, CourseRule<T>::root_state()}};
+  const unsigned threads = threads_for(core.build_threads);
+  if (threads <= 1 || core.size < kParallelMin) {
+    build_top_down(core, tasks, rule, &layout);
+  } else {
+    int defer_depth = 1; // enough subtrees to keep every thread busy
+    for (std::size_t subtrees = 3; subtrees < 4 * std::size_t(threads); subtrees *= 3) ++defer_depth;
+    std::vector<Task> deferred;
+    build_top_down(core, tasks, rule, &layout, defer_depth, &deferred);
+    parallel_for(deferred.size(), threads, [&](std::size_t i) {
+      std::vector<Task> one{deferred[i]};
+      build_top_down(core, one, rule, &layout);
+    });
+  }
+  std::size_t next = 0;
+  for_each_preorder(core.nodes, core.root, [&](int n) {
+    if (!core.nodes.node(n).is_leaf()) return;
+    const std::size_t count = core.nodes.info(n).count;
+    fill_leaf(core, n, rule, next, next + count);
+    next += count;
+  });
+  std::vector<Item<T>>().swap(core.scratch.value.items);
+}
+
+/// Replaces the contents with `elements` (elements[i] gets the id i), built
+/// by the tree's rule. If it throws, the tree is left empty.
+template <class T> void construct(Core<T> &core, const std::vector<T> &elements) {
+  core.clear();
+  if (elements.empty()) return;
+  if (elements.size() > std::size_t(std::numeric_limits<std::uint32_t>::max()))
+    throw std::length_error("BVH::construct: more shapes than 32-bit handles can name");
+  try {
+    core.size = elements.size();
+    core.leaves.take_first_ids(core.size);
+    if (core.rule == BuildRule::course) {
+      construct_by_course_rule(core, elements);
+      return;
+    }
+    std::vector<Tagged<T>> tagged;
+    tagged.reserve(core.size);
+    for (std::size_t i = 0; i < core.size; ++i) tagged.push_back(Tagged<T>{elements[i], std::uint32_t(i)});
+    core.root = core.new_node(0, -1, 0);
+    build_at(core, core.root, tagged, Cut::by_rule);
+  } catch (...) {
+    core.clear();
+    throw;
+  }
+}
+
+// ===========================================================================
+// 6. Changes: the insertion strategy, erase, update, margins
+// ===========================================================================
+
+/// The insertion strategy, part 1: the child of inner node n whose box
+/// grows least in area when it takes `box`; ties go to the smaller child,
+/// then the first. Boxes are the children's float boxes (rounded outwards)
+/// kept in the parent, so the choice reads one cache line; areas are
+/// computed in double from those floats.
+inline int choose_child(const Node &node, const Box &box) {
+  const double bx0 = box.x0, by0 = box.y0, bx1 = box.x1, by1 = box.y1;
+  int best = 0;
+  double best_growth = 0, best_area = 0;
+  for (int c = 0; c < node.num_children; ++c) {
+    const double x0 = node.lo_x[c], y0 = node.lo_y[c], x1 = node.hi_x[c], y1 = node.hi_y[c];
+    const double area = (x1 - x0) * (y1 - y0);
+    const double grown = (std::max(x1, bx1) - std::min(x0, bx0)) * (std::max(y1, by1) - std::min(y0, by0));
+    const double growth = grown - area;
+    if (c == 0 || growth < best_growth || (growth == best_growth && area < best_area)) {
+      best = c;
+      best_growth = growth;
+      best_area = area;
+    }
+  }
+  return node.child(best);
+}
+
+/// A child holding more than this share of its parent's shapes makes
+/// the parent lopsided (a balanced node gives each child 1 / kWidth).
+constexpr double kLopsided = 0.6;
+/// Subtrees smaller than this are never rebuilt for balance: their
+/// imbalance costs less than the rebuild.
+template <class T> std::size_t min_rebuild(const Core<T> &core) {
+  return std::max<std::size_t>(16, 3 * std::size_t(core.split_threshold + 1));
+}
+
+/// The insertion strategy, part 2, and erase's balance: scapegoat-style
+/// partial rebuilds. Least-growth descent alone grows worse trees than the
+/// build rule and, under sorted input, a spine as deep as n / k. After each
+/// change, the highest node on the path from `a` up to the root (of at
+/// least min_rebuild() shapes) that is lopsided is rebuilt by the build
+/// rule. A node is lopsided when its child on the path (insert: the one the
+/// shape went down; `below` starts as a's) or, with `any_child` (erase,
+/// where any child may have shrunk), its largest child holds more than
+/// kLopsided of its shapes. A rebuilt subtree of m shapes is balanced by
+/// count and needs Omega(m) changes to tip again, so rebuilds cost O(log n)
+/// amortised per change per level, and every level shrinks the count by at
+/// least 1 / kLopsided: depth O(log n) for any order of changes. Returns -1
+/// when no node is lopsided.
+template <class T> int find_scapegoat(const Core<T> &core, int a, int below, bool any_child) {
+  int scapegoat = -1;
+  for (; a >= 0; below = a, a = core.nodes.info(a).parent) {
+    const Node &node = core.nodes.node(a);
+    const std::size_t count = core.nodes.info(a).count;
+    if (node.is_leaf() || count < min_rebuild(core)) continue;
+    std::size_t heaviest = 0;
+    if (any_child) {
+      for (int c = 0; c < node.num_children; ++c)
+        heaviest = std::max(heaviest, core.nodes.info(node.child(c)).count);
+    } else {
+      heaviest = core.nodes.info(below).count;
+    }
+    if (double(heaviest) > kLopsided * double(count)) scapegoat = a; // the last found is the highest
+  }
+  return scapegoat;
+}
+
+/// Adds `shape` under an id already taken: descend by least area growth
+/// (choose_child), add it to that leaf, split the leaf by the build rule
+/// when it holds more than split_threshold shapes above depth_limit, then
+/// rebuild the highest lopsided node on the path (find_scapegoat).
+template <class T> void insert_shape(Core<T> &core, const T &shape, std::uint32_t id) {
+  NodeStore &nodes = core.nodes;
+  const Box box = core.fat(box_of(shape));
+  ++core.size;
+  if (core.root < 0) {
+    core.root = core.new_node(0, -1, 0);
+    nodes.set_box(core.root, box);
+    nodes.info(core.root).count = 1;
+    core.leaves.push(nodes.node(core.root), core.root, shape, id);
+    return;
+  }
+  int n = core.root;
+  for (;;) {
+    ++nodes.info(n).count;
+    nodes.extend_box(n, box);
+    if (nodes.node(n).is_leaf()) break;
+    n = choose_child(nodes.node(n), box);
+  }
+  if (!core.is_leaf_size(nodes.info(n).count, nodes.info(n).depth)) {
+    // The leaf splits: its shapes and the new one go straight to the build
+    // (pushing first could move the slot to a larger class for nothing).
+    std::vector<Tagged<T>> shapes;
+    shapes.reserve(nodes.info(n).count);
+    core.leaves.take(nodes.node(n), shapes);
+    shapes.push_back(Tagged<T>{shape, id});
+    build_at(core, n, shapes, Cut::by_rule);
+  } else {
+    core.leaves.push(nodes.node(n), n, shape, id);
+  }
+  const int scapegoat = find_scapegoat(core, nodes.info(n).parent, n, false);
+  if (scapegoat >= 0) rebuild(core, scapegoat, Cut::by_rule);
+}
+
+/// Removes shape `index` of leaf `leaf` and returns its id (still taken),
+/// then mends the tree:
+///  1. counts and tight boxes are refitted from the leaf to the root;
+///  2. the highest ancestor left with at most split_threshold shapes, or
+///     else the parent of a leaf left empty, is rebuilt from its shapes
+///     (a leaf, or kWidth children again): no empty leaf, no inner node
+///     with too few children or too few shapes;
+///  3. the highest lopsided ancestor of what changed is rebuilt
+///     (find_scapegoat), so depth stays O(log n) under any churn.
+/// Rebuilds here split the shapes in their leaf order (Cut::in_order), so
+/// iteration order survives an erase. A rebuild of m shapes costs O(m log
+/// m) and, as for inserts, needs Omega(m) erases below the node to recur.
+template <class T> std::uint32_t erase_at(Core<T> &core, int leaf, std::size_t index) {
+  NodeStore &nodes = core.nodes;
+  const std::uint32_t id = core.leaves.erase(nodes.node(leaf), index);
+  if (--core.size == 0) {
+    core.clear_nodes();
+    return id;
+  }
+  // 1. Refit, bottom-up (above the first box that does not change, only
+  // the counts do), and 2. find the node to mend on the way.
+  int mend = nodes.node(leaf).leaf().count == 0 ? nodes.info(leaf).parent : -1;
+  bool refit = true;
+  for (int n = leaf; n >= 0; n = nodes.info(n).parent) {
+    const std::size_t count = --nodes.info(n).count;
+    if (refit) {
+      const Box box = core.fitted_box(n);
+      refit = box != nodes.box(n);
+      if (refit) nodes.set_box(n, box);
+    }
+    if (n != leaf && count <= std::size_t(core.split_threshold)) mend = n; // the highest wins
+  }
+  if (mend >= 0) rebuild(core, mend, Cut::in_order);
+  // 3. Balance.
+  const int scapegoat = find_scapegoat(core, mend >= 0 ? mend : leaf, -1, true);
+  if (scapegoat >= 0) rebuild(core, scapegoat, Cut::in_order);
+  return id;
+}
+
+/// erase_at(), then the id is given back.
+template <class T> void erase_shape(Core<T> &core, int leaf, std::size_t index) {
+  const std::uint32_t id = erase_at(core, leaf, index);
+  core.leaves.free_id(id, core.size == 0);
+}
+
+/// The shape of `id` becomes `moved`: in place while it fits its leaf's
+/// box (refitting above when there is no margin), else erased and inserted
+/// again under the same id.
+template <class T> void update_shape(Core<T> &core, std::uint32_t id, const T &moved) {
+  const typename LeafStore<T>::Loc at = core.leaves.locate(id);
+  if (core.nodes.box(at.leaf).contains(box_of(moved))) {
+    core.leaves.shapes(core.nodes.node(at.leaf))[at.index] = moved;
+    if (core.margin == 0) core.refit_up(at.leaf);
+    return;
+  }
+  erase_at(core, at.leaf, at.index);
+  insert_shape(core, moved, id);
+}
+
+/// Sets the margin and recomputes every box, bottom-up: O(n).
+template <class T> void set_margin(Core<T> &core, double m) {
+  core.margin = m > 0 && m < std::numeric_limits<double>::infinity() ? m : 0;
+  if (core.root < 0) return;
+  std::vector<int> order;
+  order.reserve(core.nodes.live());
+  for_each_preorder(core.nodes, core.root, [&](int n) { order.push_back(n); });
+  for (auto it = order.rbegin(); it != order.rend(); ++it) core.nodes.set_box(*it, core.fitted_box(*it));
+}
+
+// ===========================================================================
+// 7. Queries
+// ===========================================================================
+//
+// Every query is const and reads the tree only, so any number of threads
+// may query one tree at once while none changes it. The depth-first ones
+// run walk(); overlapping() runs walk()'s steps one at a time; the nearest
+// searches and the ray run best_first().
+
+/// True iff some stored shape intersects `shape` (touching counts).
+/// Subtrees whose box misses the shape's box are never visited; the final
+/// test is T's intersect().
+template <class T> bool collides(const Core<T> &core, const T &shape) {
+  if (core.root < 0) return false;
+  const Box box = box_of(shape);
+  if (!core.nodes.box(core.root).overlaps(box)) return false;
+  const Probe probe = Probe::around(box);
+  // Children holding the probe's centre first: a hit there is likely.
+  return !walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
+    const Node &node = core.nodes.node(n);
+    if (node.is_leaf()) {
+      for (const T &s : core.leaves.shapes(node))
+        if (intersect(s, shape)) return kStop;
+      return 0;
+    }
+    unsigned hits, near;
+    child_masks(node, probe, hits, near);
+    return hits | near << kFirst; // near is a subset of hits
+  });
+}
+
+/// Calls visit(shape) on each shape whose box overlaps `box`, until it
+/// returns false.
+template <class T, class V> void visit_overlapping(const Core<T> &core, const Box &box, V &&visit) {
+  if (core.root < 0 || !core.nodes.box(core.root).overlaps(box)) return;
+  const Probe probe = Probe::around(box);
+  walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
+    const Node &node = core.nodes.node(n);
+    if (node.is_leaf()) {
+      for (const T &s : core.leaves.shapes(node))
+        if (box_of(s).overlaps(box) && !visit(s)) return kStop;
+      return 0;
+    }
+    unsigned hits, near;
+    child_masks(node, probe, hits, near);
+    return hits;
+  });
+}
+
+/// visit_overlapping() suspended between the shapes it finds: walk()'s
+/// stack and steps, kept between calls, and the current leaf's shapes not
+/// yet looked at. With `shape`, only shapes that intersect it are found.
+/// The stack is on the call stack for trees up to IndexStack::kInline deep.
+template <class T> class OverlapSearch {
+public:
+  /// The end of every search.
+  OverlapSearch() = default;
+  /// The search of `core` for `box` (and `shape`, when not null), at its
+  /// first shape.
+  OverlapSearch(const Core<T> &core, const Box &box, const T *shape)
+      : core_(&core), box_(box), probe_(Probe::around(box)) {
+    if (shape) shape_.emplace(*shape);
+    if (core.root < 0 || !core.nodes.box(core.root).overlaps(box)) return;
+    stack_.push(core.root);
+    next();
+  }
+  /// The shape found, nullptr at the end.
+  const T *at() const { return at_; }
+  /// On to the next shape found.
+  void next() {
+    at_ = nullptr;
+    for (;;) {
+      while (next_ != last_) {
+        const T *s = next_++;
+        if (box_of(*s).overlaps(box_) && (!shape_ || intersect(*s, *shape_))) {
+          at_ = s;
+          return;
+        }
+      }
+      if (stack_.empty()) return;
+      const Node &node = core_->nodes.node(stack_.pop());
+      if (node.is_leaf()) {
+        const Span<const T> v = core_->leaves.shapes(node);
+        next_ = v.begin();
+        last_ = v.end();
+        continue;
+      }
+      unsigned hits, near;
+      child_masks(node, probe_, hits, near);
+      push_children(stack_, node, hits);
+    }
+  }
+
+private:
+  const Core<T> *core_ = nullptr;
+  Box box_;
+  Probe probe_ = Probe(0, 0, 0, 0, 0, 0);
+  std::optional<T> shape_; // a copy: the probe may be a temporary
+  IndexStack stack_;
+  const T *next_ = nullptr, *last_ = nullptr;
+  const T *at_ = nullptr;
+};
+
+/// Finds a stored shape equal to `value`: its leaf and index. Only
+/// subtrees whose box holds value's box are searched.
+template <class T> bool find_equal(const Core<T> &core, const T &value, int &leaf, std::size_t &index) {
+  const Box box = box_of(value);
+  if (core.root < 0 || !core.nodes.box(core.root).contains(box)) return false;
+  // A float child box is its exact box rounded outwards: it holds `box`
+  // whenever the exact one does.
+  return !walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
+    const Node &node = core.nodes.node(n);
+    if (node.is_leaf()) {
+      const Span<const T> v = core.leaves.shapes(node);
+      for (std::size_t i = 0; i < v.size(); ++i)
+        if (v[i] == value) {
+          leaf = n;
+          index = i;
+          return kStop;
+        }
+      return 0;
+    }
+    unsigned enter = 0;
+    for (int c = 0; c < node.num_children; ++c)
+      enter |= unsigned(node.lo_x[c] <= box.x0 && node.lo_y[c] <= box.y0 && box.x1 <= node.hi_x[c] &&
+                        box.y1 <= node.hi_y[c])
+               << c;
+    return enter;
+  });
+}
+
+/// One answer of best_first(): a shape, its key and its id. Answers are
+/// ordered by key, then id.
+template <class T> struct Found {
+  double key;
+  std::uint32_t id;
+  const T *shape;
+  friend bool operator<(const Found &a, const Found &b) { return a.key < b.key || (a.key == b.key && a.id < b.id); }
+};
+
+/// The key of nearest(p) and nearest(p, k): distance(p, shape), bounded
+/// below by the squared distance to a child's float box (rounded outwards,
+/// so never farther than the exact box).
+template <class P> struct PointMetric {
+  const P &p;
+  double box_key(const Node &node, int c) const {
+    const double px = p.x, py = p.y;
+    const double dx = std::max({double(node.lo_x[c]) - px, 0.0, px - double(node.hi_x[c])});
+    const double dy = std::max({double(node.lo_y[c]) - py, 0.0, py - double(node.hi_y[c])});
+    return dx * dx + dy * dy;
+  }
+  template <class T> double shape_key(const T &s) const { return distance(p, s); }
+  // (a relative margin covers the rounding of squares)
+  static double beyond(double worst) { return worst * worst * (1 + 1e-9) + 1e-300; }
+};
+
+/// The key of first_hit(): where the ray meets the shape (+inf: it
+/// misses), bounded below by where it enters a child's float box.
+template <class P> struct RayMetric {
+  const P &origin, &direction;
+  double box_key(const Node &node, int c) const {
+    const Box b{node.lo_x[c], node.lo_y[c], node.hi_x[c], node.hi_y[c]};
+    return b.ray_entry(origin.x, origin.y, direction.x, direction.y);
+  }
+  template <class T> double shape_key(const T &s) const { return ray_hit(origin, direction, s); }
+  static double beyond(double worst) { return worst * (1 + 1e-12) + 1e-300; }
+};
+
+/// The one best-first search: the min(k, size) shapes of least finite
+/// metric.shape_key, in increasing (key, id) order, into `found`. Nodes
+/// are taken in order of metric.box_key, a lower bound on the keys of the
+/// shapes under a child; the search stops when the next node's bound is
+/// past metric.beyond(the k-th key so far). O(log n + k) typically.
+template <class T, class Metric>
+void best_first(const Core<T> &core, const Metric &metric, std::size_t k, std::vector<Found<T>> &found) {
+  found.clear();
+  if (k == 0 || core.root < 0) return;
+  const double inf = std::numeric_limits<double>::infinity();
+  found.reserve(std::min(k, core.size) + 1); // a max-heap of the best min(k, seen) so far
+  auto bound = [&] { return found.size() < k ? inf : metric.beyond(found.front().key); };
+  using Entry = std::pair<double, int>; // (box key, node)
+  std::vector<Entry> heap;
+  heap.reserve(64);
+  heap.push_back({0.0, core.root});
+  while (!heap.empty()) {
+    std::pop_heap(heap.begin(), heap.end(), std::greater<Entry>());
+    const Entry e = heap.back();
+    heap.pop_back();
+    if (e.first > bound()) break;
+    const Node &node = core.nodes.node(e.second);
+    if (node.is_leaf()) {
+      // The ids only once a shape is near enough to need its tie-break.
+      const Span<const T> v = core.leaves.shapes(node);
+      const std::uint32_t *ids = nullptr;
+      for (std::size_t i = 0; i < v.size(); ++i) {
+        const double d = metric.shape_key(v[i]);
+        if (!(d < inf) || (found.size() == k && d > found.front().key)) continue;
+        if (!ids) ids = core.leaves.ids(node);
+        const Found<T> f{d, ids[i], &v[i]};
+        if (found.size() < k) {
+          found.push_back(f);
+          std::push_heap(found.begin(), found.end());
+        } else if (f < found.front()) {
+          std::pop_heap(found.begin(), found.end());
+          found.back() = f;
+          std::push_heap(found.begin(), found.end());
+        }
+      }
+      continue;
+    }
+    const double limit = bound();
+    for (int c = 0; c < node.num_children; ++c) {
+      const double key = metric.box_key(node, c);
+      if (key > limit || key == inf) continue;
+#if defined(__GNUC__)
+      // Best-first reaches most pushed nodes soon, but only after the
+      // heap reorders: fetching them now hides the miss behind that work.
+      __builtin_prefetch(&core.nodes.node(node.child(c)));
+#endif
+      heap.push_back({key, node.child(c)});
+      std::push_heap(heap.begin(), heap.end(), std::greater<Entry>());
+    }
+  }
+  std::sort_heap(found.begin(), found.end());
+}
+
+/// Calls f(a, b) once for every unordered pair of stored shapes that
+/// intersect; if f returns bool, false stops. A simultaneous traversal of
+/// the tree against itself: a pair of nodes is opened only when their boxes
+/// overlap, so the cost is O(n log n + k) for k pairs on well-spread
+/// scenes, against O(n^2) for a scan.
+template <class T, class F> void for_each_overlapping_pair(const Core<T> &core, F &&f) {
+  if (core.root < 0) return;
+  const NodeStore &nodes = core.nodes;
+  auto pair = [&](const T &s, const T &u) { return box_of(s).overlaps(box_of(u)) && intersect(s, u); };
+  std::vector<std::pair<int, int>> stack{{core.root, core.root}};
+  while (!stack.empty()) {
+    auto [a, b] = stack.back();
+    stack.pop_back();
+    const Node &na = nodes.node(a);
+    if (a == b) {
+      if (na.is_leaf()) {
+        const Span<const T> v = core.leaves.shapes(na);
+        for (std::size_t i = 0; i < v.size(); ++i)
+          for (std::size_t j = i + 1; j < v.size(); ++j)
+            if (pair(v[i], v[j]) && !keep_going(f, v[i], v[j])) return;
+        continue;
+      }
+      for (int c = 0; c < na.num_children; ++c) {
+        stack.push_back({na.child(c), na.child(c)});
+        for (int d = c + 1; d < na.num_children; ++d)
+          if (nodes.box(na.child(c)).overlaps(nodes.box(na.child(d)))) stack.push_back({na.child(c), na.child(d)});
+      }
+      continue;
+    }
+    const Node &nb = nodes.node(b);
+    if (na.is_leaf() && nb.is_leaf()) {
+      for (const T &s : core.leaves.shapes(na))
+        for (const T &u : core.leaves.shapes(nb))
+          if (pair(s, u) && !keep_going(f, s, u)) return;
+      continue;
+    }
+    // Open the inner node of the two, the larger box when both are.
+    if (na.is_leaf() || (!nb.is_leaf() && nodes.box(b).area() > nodes.box(a).area())) std::swap(a, b);
+    const Node &open = nodes.node(a);
+    for (int c = 0; c < open.num_children; ++c)
+      if (nodes.box(open.child(c)).overlaps(nodes.box(b))) stack.push_back({open.child(c), b});
+  }
+}
+
+// ===========================================================================
+// 8. Diagnostics: the course's report and picture, validate
+// ===========================================================================
+
+/// What the course's report sums: node count, max depth, and the two area
+/// sums of the surface area heuristic (areas in units of the canvas).
+struct Summary {
+  long nodes = 0;
+  int max_depth = 0;
+  double inner_area = 0, leaf_area = 0;
+};
+
+/// The one pass behind statistics(), sah_cost() and height(): every node in
+/// pre-order, f(n, its area in canvas units) called on each.
+template <class T, class F> Summary summarize(const Core<T> &core, F &&f) {
+  Summary s;
+  for_each_preorder(core.nodes, core.root, [&](int n) {
+    const Info &in = core.nodes.info(n);
+    const double area = in.box().area() / kCanvasArea;
+    ++s.nodes;
+    s.max_depth = std::max(s.max_depth, in.depth);
+    if (core.nodes.node(n).is_leaf())
+      s.leaf_area += area * double(in.count);
+    else
+      s.inner_area += area;
+    f(n, area);
+  });
+  return s;
+}
+template <class T> Summary summarize(const Core<T> &core) {
+  return summarize(core, [](int, double) {});
+}
+
+/// The course's report: with `print_tree`, one line per node in pre-order,
+/// then node count, max depth and the two area sums.
+template <class T> void print_statistics(const Core<T> &core, std::ostream &ostr, bool print_tree) {
+  std::string line;
+  char buf[64];
+  const Summary s = summarize(core, [&](int n, double area) {
+    if (!print_tree) return;
+    const Info &in = core.nodes.info(n);
+    const Node &node = core.nodes.node(n);
+    // The course's stream is not yet in fixed mode when it prints the
+    // root, so the root's area shows 3 significant digits, the rest 3
+    // decimals.
+    std::snprintf(buf, sizeof buf, n == core.root ? "%.3g" : "%.3f", area);
+    line.assign(std::size_t(3) * std::size_t(in.depth), ' ');
+    line += node.is_leaf() ? "leaf area=" : "inner area=";
+    line += buf;
+    line += ' ';
+    append_box(line, in.box());
+    if (node.is_leaf()) {
+      line += " elements:";
+      for (const T &shape : core.leaves.shapes(node)) {
+        line += ' ';
+        append_box(line, box_of(shape));
+      }
+    }
+    line += '\n';
+    ostr << line;
+  });
+  std::snprintf(buf, sizeof buf, "node count:      %7ld\n", s.nodes);
+  ostr << buf;
+  std::snprintf(buf, sizeof buf, "max depth:       %7d\n", s.max_depth);
+  ostr << buf;
+  std::snprintf(buf, sizeof buf, "inner node area: %7.3f\n", s.inner_area);
+  ostr << buf;
+  std::snprintf(buf, sizeof buf, "leaf node area:  %7.3f\n", s.leaf_area);
+  ostr << buf;
+  ostr.flush();
+}
+
+/// The course's picture: every node's box drawn translucently (root grey,
+/// its children red, green and blue, deeper children blended 2/3 parent
+/// and 1/3 their own primary), every shape recoloured to its leaf's colour.
+/// Boxes are drawn by the shape library's BoundingBox::render; colours are
+/// made with Color(r, g, b) and given to T::setColor.
+template <class T> void render_recolor(Core<T> &core, std::ostream &ostr) {
+  if (core.root < 0) return;
+  struct Rgb {
+    int r, g, b;
+  };
+  static const Rgb primary[kWidth] = {{255, 0, 0}, {0, 255, 0}, {0, 0, 255}};
+  // Channels mixed here, as Color::mix would (the course's mix returns
+  // nothing and this project's returns the mix: neither is relied on).
+  auto blend = [](const Rgb &parent, const Rgb &own) {
+    const float f = 2.0f / 3.0f;
+    return Rgb{int(parent.r * f + own.r * (1 - f)), int(parent.g * f + own.g * (1 - f)),
+               int(parent.b * f + own.b * (1 - f))};
+  };
+  std::vector<Rgb> rgb(core.nodes.capacity());
+  rgb[std::size_t(core.root)] = Rgb{128, 128, 128};
+  for_each_preorder(core.nodes, core.root, [&](int n) {
+    const Info &in = core.nodes.info(n);
+    Rgb &own = rgb[std::size_t(n)];
+    if (in.parent >= 0)
+      own = in.parent == core.root ? primary[in.child_index]
+                                   : blend(rgb[std::size_t(in.parent)], primary[in.child_index]);
+    const Color color(own.r, own.g, own.b);
+    const Box &b = in.box();
+    BoundingBox(Point(b.x0, b.y0), Point(b.x1, b.y1)).render(ostr, color);
+    Node &node = core.nodes.node(n);
+    if (node.is_leaf())
+      for (T &s : core.leaves.shapes(node)) s.setColor(color);
+  });
+}
+
+/// Checks node n's own invariants (not its subtree's: validate() does
+/// that); false with *why set on the first failure.
+template <class T> bool validate_node(const Core<T> &core, int n, std::string &why) {
+  const NodeStore &nodes = core.nodes;
+  const Node &node = nodes.node(n);
+  const Info &in = nodes.info(n);
+  if (n == core.root) {
+    if (in.parent != -1 || in.depth != 0) return why = "root has a parent or depth != 0", false;
+  } else {
+    const Node &p = nodes.node(in.parent);
+    const int c = in.child_index;
+    if (in.depth != nodes.info(in.parent).depth + 1) return why = "depth is not parent's + 1", false;
+    if (c < 0 || c >= p.num_children || p.child(c) != n) return why = "parent does not list it in its slot", false;
+    if (p.lo_x[c] != float_down(in.box().x0) || p.lo_y[c] != float_down(in.box().y0) ||
+        p.hi_x[c] != float_up(in.box().x1) || p.hi_y[c] != float_up(in.box().y1))
+      return why = "parent's float box for it is not its box rounded outwards", false;
+  }
+  if (core.depth_limit != 0 && in.depth > core.depth_limit) return why = "deeper than depth_limit", false;
+  Box tight;
+  std::size_t count = 0;
+  if (node.is_leaf()) {
+    const LeafSlot slot = node.leaf();
+    if (!slot.has_slot() || slot.count == 0) return why = "empty leaf", false;
+    if (core.leaves.slot_size(node) != slot.count) return why = "leaf's record disagrees with its slot", false;
+    if (!core.is_leaf_size(slot.count, in.depth)) return why = "leaf over split_threshold above depth_limit", false;
+    const Span<const T> shapes = core.leaves.shapes(node);
+    for (const T &s : shapes) tight.extend(box_of(s));
+    count = shapes.size();
+    const std::uint32_t *ids = core.leaves.ids(node);
+    for (std::size_t i = 0; i < shapes.size(); ++i)
+      if (!core.leaves.contains(ids[i]) || core.leaves.locate(ids[i]).leaf != n ||
+          core.leaves.locate(ids[i]).index != i)
+        return why = "shape " + std::to_string(i) + "'s id does not locate it", false;
+    // With a margin a leaf's box may be larger than fat(tight): update()
+    // leaves it as it is while the shapes stay inside.
+    if (core.margin > 0 && in.box().contains(tight)) tight = in.box();
+  } else {
+    if (node.num_children < 2 || node.num_children > kWidth)
+      return why = "inner node without 2 to " + std::to_string(kWidth) + " children", false;
+    if (node.num_children == 2 && core.split_threshold != 1) return why = "2 children although split_threshold > 1", false;
+    for (int c = 0; c < node.num_children; ++c) {
+      tight.extend(nodes.box(node.child(c)));
+      count += nodes.info(node.child(c)).count;
+    }
+  }
+  if (tight != in.box()) return why = "box is not the tight box of its subtree", false;
+  if (count != in.count) return why = "shape count is not its subtree's", false;
+  return true;
+}
+
+/// Checks every invariant of the tree; false with *why (when given) naming
+/// the node and what it broke. O(n log n).
+template <class T> bool validate(const Core<T> &core, std::string *why) {
+  const NodeStore &nodes = core.nodes;
+  std::string what;
+  int bad = -1;
+  auto fail = [&](int n, const std::string &w) {
+    if (why) *why = "node " + std::to_string(n) + ": " + w;
+    return false;
+  };
+  if (core.root < 0) {
+    if (core.size != 0) return fail(-1, "empty tree with size " + std::to_string(core.size));
+    if (nodes.live() != 0) return fail(-1, "empty tree with live nodes");
+    if (core.leaves.id_count() != 0 || !core.leaves.free_ids().empty()) return fail(-1, "empty tree with ids");
+    return true;
+  }
+  std::vector<char> is_free(nodes.capacity(), 0);
+  for (int f : nodes.free_list()) {
+    if (f < 0 || std::size_t(f) >= nodes.capacity() || is_free[std::size_t(f)]) return fail(f, "bad free-list entry");
+    is_free[std::size_t(f)] = 1;
+  }
+  std::size_t counted = 0, reached = 0;
+  walk(nodes, core.root, [&](int n) -> unsigned {
+    ++reached;
+    if (is_free[std::size_t(n)]) what = "reachable node on the free list";
+    else if (validate_node(core, n, what)) what.clear();
+    if (!what.empty()) {
+      bad = n;
+      return kStop;
+    }
+    if (nodes.node(n).is_leaf()) counted += nodes.info(n).count;
+    return all_children(nodes.node(n));
+  });
+  if (bad >= 0) return fail(bad, what);
+  if (reached + nodes.free_list().size() != nodes.capacity()) return fail(core.root, "unreachable nodes off the free list");
+  if (counted != core.size) return fail(core.root, "size() disagrees with the shapes stored");
+  if (core.leaves.id_count() != core.size + core.leaves.free_ids().size())
+    return fail(-1, "ids in use and free do not add up");
+  std::vector<char> id_free(core.leaves.id_count(), 0);
+  for (std::uint32_t id : core.leaves.free_ids()) {
+    if (id >= core.leaves.id_count() || core.leaves.contains(id) || id_free[id])
+      return fail(-1, "free id " + std::to_string(id) + " is in use or listed twice");
+    id_free[id] = 1;
+  }
+  return true;
+}
 
 } // namespace bvh_detail
+
+// ===========================================================================
+// 9. BVH<T>: the facade
+// ===========================================================================
 
 /// A ternary bounding volume hierarchy over shapes of type T.
 ///
@@ -678,79 +2392,52 @@ template <class X> struct Scratch {
 ///    lookup (collision, query by shape, all pairs).
 /// A few members need more, say so, and compile only when used:
 /// erase(value) needs `==`, nearest() a free `distance(const Point&, const
-/// T&)`, first_hit() a free `ray_hit(const Point&, const Point&, const T&)`,
-/// render_recolor() `setColor(const Color&)`. Shapes live only in leaves,
-/// each exactly once; every node knows the tight box of its subtree.
-///
-/// Storage: nodes live in two parallel arrays (bvh_detail::BlockVector),
-/// after construct() in pre-order with each node's children adjacent.
-/// `nodes_` holds what queries read, 64 bytes a node (one cache line): an
-/// inner node's children's boxes, in float rounded outwards, and their
-/// indices, so a query decides all three children from one line; a leaf's
-/// pool slot and shape count. `info_` holds the rest: the exact double box,
-/// parent, depth, shape count and, for leaves, the slot that owns the
-/// shapes. The shapes themselves live in one pool (bvh_detail::LeafPool),
-/// each with its handle's id beside it; `loc_` maps an id back to its leaf
-/// and position, and every change to a leaf rewrites the entries it moves.
+/// T&)`, first_hit() a free `ray_hit(const Point&, const Point&, const
+/// T&)`, render_recolor() `setColor(const Color&)`. Shapes live only in
+/// leaves, each exactly once; every node knows the tight box of its
+/// subtree. The const members only read the tree: any number of threads may
+/// call them at once while no thread changes the tree.
 template <class T> class BVH {
   using Box = bvh_detail::Box;
-  using Probe = bvh_detail::Probe;
+  using Core = bvh_detail::Core<T>;
 
 public:
   /// `depth_limit` value meaning "no limit" (the course's default of 0).
   static constexpr int unlimited = 0;
+  /// Scenes smaller than this are built without threads.
+  static constexpr std::size_t kParallelMin = bvh_detail::kParallelMin;
+  /// How construct() and the splits and rebuilds of insert() cut a node.
+  using BuildRule = bvh_detail::BuildRule;
 
   /// An empty tree. A node holding more than `split_threshold` shapes is
   /// split unless it is at depth `depth_limit` (root = depth 0;
   /// `depth_limit <= 0` means unlimited). A `split_threshold` below 1 is
   /// taken as 1 (every leaf then holds one shape, above the depth limit).
   explicit BVH(int split_threshold = 4, int depth_limit = unlimited)
-      : split_threshold_(split_threshold < 1 ? 1 : split_threshold),
-        depth_limit_(depth_limit <= 0 ? unlimited : depth_limit) {}
+      : core_(split_threshold < 1 ? 1 : split_threshold, depth_limit <= 0 ? unlimited : depth_limit) {}
 
-  // Copying and destruction are the defaults: every part lives in vectors,
-  // so copies are deep and independent and nothing recurses. Moves are
-  // written out only so that a moved-from tree is a valid empty tree.
-
-  /// Deep copy.
+  /// Deep copy (nothing recurses: every part lives in arrays).
   BVH(const BVH &) = default;
   /// Deep copy; self-assignment is safe.
   BVH &operator=(const BVH &) = default;
-  /// Takes `other`'s shapes; `other` is left empty (same parameters).
-  BVH(BVH &&other) noexcept
-      : nodes_(std::move(other.nodes_)), info_(std::move(other.info_)), free_(std::move(other.free_)),
-        pool_(std::move(other.pool_)), loc_(std::move(other.loc_)), free_ids_(std::move(other.free_ids_)),
-        root_(other.root_), size_(other.size_), split_threshold_(other.split_threshold_),
-        depth_limit_(other.depth_limit_), build_rule_(other.build_rule_), build_threads_(other.build_threads_),
-        margin_(other.margin_) {
-    other.clear();
-  }
-  /// Takes `other`'s shapes and parameters; `other` is left empty.
+  /// Takes `other`'s shapes and parameters; `other` is left a valid empty
+  /// tree with its split_threshold and depth_limit.
+  BVH(BVH &&other) noexcept : core_(other.core_.split_threshold, other.core_.depth_limit) { take(other); }
+  /// Takes `other`'s shapes and parameters; `other` is left a valid empty
+  /// tree.
   BVH &operator=(BVH &&other) noexcept {
-    if (this != &other) {
-      nodes_ = std::move(other.nodes_);
-      info_ = std::move(other.info_);
-      free_ = std::move(other.free_);
-      pool_ = std::move(other.pool_);
-      loc_ = std::move(other.loc_);
-      free_ids_ = std::move(other.free_ids_);
-      root_ = other.root_;
-      size_ = other.size_;
-      split_threshold_ = other.split_threshold_;
-      depth_limit_ = other.depth_limit_;
-      build_rule_ = other.build_rule_;
-      build_threads_ = other.build_threads_;
-      margin_ = other.margin_;
-      other.clear();
-    }
+    if (this != &other) take(other);
     return *this;
   }
   ~BVH() = default;
 
-  /// A stored shape's name: given by insert() (construct() gives elements[i]
-  /// the id i), valid until that shape is erased whatever else is
-  /// inserted, erased, updated or rebuilt. Like Box2D's proxy ids, the id
-  /// of an erased shape may be given again by a later insert().
+  /// A stored shape's name. insert() returns it; construct(elements) names
+  /// elements[i] `handle{std::uint32_t(i)}`. It stays valid until that shape
+  /// is erased, whatever else is inserted, erased, updated or rebuilt; then
+  /// its id may be given again by a later insert(), as Box2D's proxy ids
+  /// are. Using a handle that names no stored shape is a BVH_ASSERT failure
+  /// in a debug build and undefined behaviour under NDEBUG (contains()
+  /// tells).
   struct handle {
     std::uint32_t id;
     friend bool operator==(handle a, handle b) { return a.id == b.id; }
@@ -774,21 +2461,21 @@ public:
     /// The shape it points to (not end()).
     reference operator*() const {
       BVH_ASSERT(tree_ != nullptr && leaf_ >= 0, "dereferencing end() or a singular iterator");
-      return tree_->shapes_of(leaf_)[index_];
+      return shapes()[index_];
     }
     /// Member access on the shape it points to.
     pointer operator->() const { return &**this; }
     /// The handle of the shape it points to (not end()).
     handle id() const {
       BVH_ASSERT(tree_ != nullptr && leaf_ >= 0, "id() of end() or a singular iterator");
-      return handle{tree_->pool_.ids(tree_->info_[leaf_].shapes)[index_]};
+      return handle{tree_->core_.leaves.ids(tree_->core_.nodes.node(leaf_))[index_]};
     }
 
     /// Next shape (end() after the last; not from end()).
     iterator &operator++() {
       BVH_ASSERT(tree_ != nullptr && leaf_ >= 0, "incrementing end() or a singular iterator");
-      if (++index_ == tree_->shapes_of(leaf_).size()) {
-        leaf_ = tree_->next_leaf(leaf_);
+      if (++index_ == shapes().size()) {
+        leaf_ = tree_->core_.nodes.next_leaf(leaf_);
         index_ = 0;
       }
       return *this;
@@ -796,17 +2483,14 @@ public:
     /// Previous shape (from end(): the last shape; not from begin()).
     iterator &operator--() {
       BVH_ASSERT(tree_ != nullptr, "decrementing a singular iterator");
-      if (leaf_ < 0) {
-        BVH_ASSERT(tree_->root_ >= 0, "decrementing end() of an empty tree");
-        leaf_ = tree_->rightmost_leaf(tree_->root_);
-        index_ = tree_->shapes_of(leaf_).size() - 1;
-      } else if (index_ > 0) {
+      if (leaf_ >= 0 && index_ > 0) {
         --index_;
-      } else {
-        leaf_ = tree_->prev_leaf(leaf_);
-        BVH_ASSERT(leaf_ >= 0, "decrementing begin()");
-        index_ = tree_->shapes_of(leaf_).size() - 1;
+        return *this;
       }
+      BVH_ASSERT(leaf_ >= 0 || tree_->core_.root >= 0, "decrementing end() of an empty tree");
+      leaf_ = leaf_ < 0 ? tree_->core_.nodes.rightmost_leaf(tree_->core_.root) : tree_->core_.nodes.prev_leaf(leaf_);
+      BVH_ASSERT(leaf_ >= 0, "decrementing begin()");
+      index_ = shapes().size() - 1;
       return *this;
     }
     /// Post-increment: steps forward, returns the old position.
@@ -829,6 +2513,7 @@ public:
   private:
     friend class BVH;
     iterator(const BVH *tree, int leaf, std::size_t index) : tree_(tree), leaf_(leaf), index_(index) {}
+    bvh_detail::Span<const T> shapes() const { return tree_->core_.leaves.shapes(tree_->core_.nodes.node(leaf_)); }
     const BVH *tree_ = nullptr;
     int leaf_ = -1; // -1: end()
     std::size_t index_ = 0;
@@ -837,161 +2522,109 @@ public:
   using const_iterator = iterator;
 
   /// First shape in leaf order (end() when empty).
-  iterator begin() const { return root_ < 0 ? end() : iterator(this, leftmost_leaf(root_), 0); }
+  iterator begin() const { return core_.root < 0 ? end() : iterator(this, core_.nodes.leftmost_leaf(core_.root), 0); }
   /// One past the last shape.
   iterator end() const { return iterator(this, -1, 0); }
 
   /// Number of stored shapes.
-  std::size_t size() const { return size_; }
+  std::size_t size() const { return core_.size; }
   /// True when no shape is stored.
-  bool empty() const { return size_ == 0; }
+  bool empty() const { return core_.size == 0; }
   /// The split threshold given at construction (at least 1).
-  int split_threshold() const { return split_threshold_; }
+  int split_threshold() const { return core_.split_threshold; }
   /// The depth limit (`unlimited`, i.e. 0, for none).
-  int depth_limit() const { return depth_limit_; }
+  int depth_limit() const { return core_.depth_limit; }
   /// The box of everything stored; a default BoundingBox when empty (with
   /// this project's shapes.h an empty box, with the course's the origin).
   BoundingBox bounds() const {
-    if (root_ < 0) return BoundingBox();
-    const Box &b = info_[root_].box;
+    if (core_.root < 0) return BoundingBox();
+    const Box &b = core_.nodes.box(core_.root);
     return BoundingBox(Point(b.x0, b.y0), Point(b.x1, b.y1));
   }
   /// Number of nodes, inner and leaf.
-  std::size_t node_count() const { return nodes_.size() - free_.size(); }
+  std::size_t node_count() const { return core_.nodes.live(); }
 
-  /// How construct() and the splits and rebuilds of insert() cut a node.
-  enum class BuildRule {
-    course, ///< the course's rule (CourseRule): thirds by count along the longer side
-    sah     ///< binned surface area heuristic (SahRule): the cut of least area cost
-  };
   /// Chooses the build rule for later builds (course by default: the
   /// course's expected output follows it).
-  void set_build_rule(BuildRule rule) { build_rule_ = rule; }
+  void set_build_rule(BuildRule rule) { core_.rule = rule; }
   /// The build rule in use.
-  BuildRule build_rule() const { return build_rule_; }
-
-  /// Removes every shape; every handle becomes invalid.
-  void clear() {
-    clear_nodes();
-    loc_.clear();
-    free_ids_.clear();
-  }
-
-  /// Replaces the contents with `elements`, built top-down by the course's
-  /// rule (see CourseRule).
-  void construct(const std::vector<T> &elements) {
-    clear();
-    if (elements.empty()) return;
-    if (elements.size() > std::size_t(std::numeric_limits<std::uint32_t>::max()))
-      throw std::length_error("BVH::construct: more shapes than 32-bit handles can name");
-    size_ = elements.size();
-    loc_.resize(size_);
-    if (build_rule_ == BuildRule::sah) {
-      std::vector<Tagged> tagged;
-      tagged.reserve(size_);
-      for (std::size_t i = 0; i < size_; ++i) tagged.push_back(Tagged{elements[i], std::uint32_t(i)});
-      root_ = new_node(0, -1, 0);
-      build(root_, tagged);
-      return;
-    }
-    // The course rule's tree shape depends on counts alone, so every node
-    // gets its index in advance (bvh_detail::Layout): in pre-order, each
-    // node's children adjacent, each subtree contiguous; and subtrees far
-    // enough down are independent, so threads can build them at once.
-    try {
-      const bvh_detail::Layout layout(size_, split_threshold_, depth_limit_);
-      const std::size_t total = layout.nodes(size_, 0);
-      nodes_.resize(total);
-      info_.resize(total);
-      root_ = 0;
-      reset_node(root_, 0, -1, 0);
-      CourseRule rule(fill_items(elements.size(), [&](std::size_t i) -> const T & { return elements[i]; }), nullptr);
-      using Task = BuildTask<typename CourseRule::State>;
-      std::vector<Task> tasks{{root_, 0, size_, 1, CourseRule::root_state()}};
-      const unsigned threads = build_threads();
-      if (threads <= 1 || size_ < kParallelMin) {
-        build_top_down(tasks, rule, &layout);
-        gather_leaves(rule);
-        return;
-      }
-      int defer_depth = 1; // enough subtrees to keep every thread busy
-      for (std::size_t subtrees = 3; subtrees < 4 * std::size_t(threads); subtrees *= 3) ++defer_depth;
-      std::vector<Task> deferred;
-      build_top_down(tasks, rule, &layout, defer_depth, &deferred);
-      bvh_detail::parallel_for(deferred.size(), threads, [&](std::size_t i) {
-        std::vector<Task> one{deferred[i]};
-        build_top_down(one, rule, &layout);
-      });
-      gather_leaves(rule);
-    } catch (...) {
-      clear();
-      throw;
-    }
-  }
-
-  /// construct()'s last step: the leaves, in pre-order, own consecutive
-  /// ranges of the rule's items; each takes its range into a pool slot.
-  /// Then the items' memory is given back.
-  template <class Rule> void gather_leaves(Rule &rule) {
-    std::size_t next = 0;
-    for_each_preorder([&](int n) {
-      if (nodes_[n].num_children != 0) return;
-      fill_leaf(n, rule, next, next + info_[n].count);
-      next += info_[n].count;
-    });
-    std::vector<Item>().swap(scratch_.value.items);
-  }
-
+  BuildRule build_rule() const { return core_.rule; }
   /// Threads construct() may use: 0 (the default) for
   /// std::thread::hardware_concurrency(), 1 for none besides the caller.
   /// The tree built is the same whatever the number; scenes under
   /// kParallelMin shapes are always built by the caller alone.
-  void set_build_threads(unsigned threads) { build_threads_ = threads; }
+  void set_build_threads(unsigned threads) { core_.build_threads = threads; }
   /// The threads construct() uses for large scenes (at least 1).
-  unsigned build_threads() const {
-    if (build_threads_ != 0) return build_threads_;
-    const unsigned hw = std::thread::hardware_concurrency();
-    return hw == 0 ? 1 : hw;
-  }
-  /// Scenes smaller than this are built without threads.
-  static constexpr std::size_t kParallelMin = std::size_t(1) << 16;
+  unsigned build_threads() const { return bvh_detail::threads_for(core_.build_threads); }
 
-  /// Adds one shape: descend by least area growth (choose_child), add it to
-  /// that leaf, split the leaf by the build rule when it holds more than
-  /// split_threshold shapes above depth_limit, then rebuild the highest
-  /// subtree on the path that has grown lopsided (rebalance_path).
-  /// Returns the new shape's handle.
+  /// Removes every shape; every handle becomes invalid.
+  void clear() { core_.clear(); }
+
+  /// Replaces the contents with `elements`, built top-down by the build
+  /// rule (the course's: see bvh_detail::CourseRule); elements[i] gets the
+  /// handle id i. If it throws, the tree is left empty.
+  void construct(const std::vector<T> &elements) { bvh_detail::construct(core_, elements); }
+
+  /// Adds one shape (the insertion strategy: bvh_detail::insert_shape) and
+  /// returns its handle.
   handle insert(const T &shape) {
-    const std::uint32_t id = new_id();
+    const std::uint32_t id = core_.leaves.new_id();
     try {
-      insert_with_id(shape, id);
+      bvh_detail::insert_shape(core_, shape, id);
     } catch (...) {
-      free_id(id);
+      core_.leaves.free_id(id, core_.size == 0);
       throw;
     }
     return handle{id};
   }
 
-  /// The stored shape named by `h` (h must be valid: see contains()).
+  /// True when `h` names a stored shape.
+  bool contains(handle h) const { return core_.leaves.contains(h.id); }
+  /// The stored shape named by `h` (valid: see contains()).
   const T &get(handle h) const {
     BVH_ASSERT(contains(h), "get() with a handle that names no stored shape");
-    return shapes_of(loc_[h.id].leaf)[loc_[h.id].index];
+    return *find(h);
   }
-  /// True when `h` names a stored shape.
-  bool contains(handle h) const { return h.id < loc_.size() && loc_[h.id].leaf >= 0; }
   /// An iterator to the shape named by `h` (valid).
   iterator find(handle h) const {
     BVH_ASSERT(contains(h), "find() with a handle that names no stored shape");
-    return iterator(this, loc_[h.id].leaf, loc_[h.id].index);
+    const auto &at = core_.leaves.locate(h.id);
+    return iterator(this, at.leaf, at.index);
   }
 
   /// Removes the shape named by `h` (valid); `h` becomes invalid, as do
   /// iterators.
   void erase(handle h) {
     BVH_ASSERT(contains(h), "erase() with a handle that names no stored shape");
-    const Loc at = loc_[h.id];
-    erase_at(at.leaf, at.index);
-    free_id(h.id);
+    const auto at = core_.leaves.locate(h.id);
+    bvh_detail::erase_shape(core_, at.leaf, at.index);
+  }
+  /// Removes the shape at `pos` and returns the iterator to the shape that
+  /// followed it (end() after the last). Every other iterator is
+  /// invalidated, but the remaining shapes keep their iteration order, so
+  /// erasing while iterating (`it = tree.erase(it)`) visits each shape once.
+  /// O(log n) amortized (bvh_detail::erase_at has the repairs).
+  iterator erase(iterator pos) {
+    BVH_ASSERT(pos.tree_ == this, "erase() with an iterator of another tree (or a singular one)");
+    BVH_ASSERT(pos.leaf_ >= 0, "erase(end())");
+    // Catches most stale iterators (changes invalidate them), not all.
+    BVH_ASSERT(std::size_t(pos.leaf_) < core_.nodes.capacity() && core_.nodes.node(pos.leaf_).is_leaf() &&
+                   core_.nodes.node(pos.leaf_).leaf().has_slot() && pos.index_ < pos.shapes().size(),
+               "erase() with an invalidated iterator");
+    const std::size_t rank = rank_of(pos.leaf_, pos.index_);
+    bvh_detail::erase_shape(core_, pos.leaf_, pos.index_);
+    return iterator_at(rank);
+  }
+  /// Removes every stored shape equal to `value` and returns how many there
+  /// were. Only subtrees whose box holds value's box are searched. Needs
+  /// `operator==` on T (the course's shapes have none: there, erase by
+  /// iterator), and compiles only when used.
+  std::size_t erase(const T &value) {
+    std::size_t removed = 0;
+    int leaf;
+    std::size_t index;
+    for (; bvh_detail::find_equal(core_, value, leaf, index); ++removed) bvh_detail::erase_shape(core_, leaf, index);
+    return removed;
   }
 
   /// The shape named by `h` (valid) becomes `moved`; its handle stays.
@@ -1004,14 +2637,7 @@ public:
   /// shapes, so that small moves stay inside them.
   void update(handle h, const T &moved) {
     BVH_ASSERT(contains(h), "update() with a handle that names no stored shape");
-    const Loc at = loc_[h.id];
-    if (info_[at.leaf].box.contains(bvh_detail::box_of(moved))) {
-      shapes_of(at.leaf)[at.index] = moved;
-      if (margin_ == 0) refit_up(at.leaf);
-      return;
-    }
-    erase_at(at.leaf, at.index);
-    insert_with_id(moved, h.id);
+    bvh_detail::update_shape(core_, h.id, moved);
   }
 
   /// Leaves' boxes are their shapes' box grown by `m` on every side (m < 0
@@ -1019,133 +2645,28 @@ public:
   /// Box2D's "fat" boxes, which let update() absorb moves smaller than m
   /// without touching the tree, at the cost of looser boxes for queries
   /// (and larger areas in statistics()). Every box is recomputed: O(n).
-  void set_margin(double m) {
-    margin_ = m > 0 && m < std::numeric_limits<double>::infinity() ? m : 0;
-    if (root_ < 0) return;
-    std::vector<int> order;
-    order.reserve(node_count());
-    for_each_preorder([&](int n) { order.push_back(n); });
-    for (auto it = order.rbegin(); it != order.rend(); ++it) {
-      info_[*it].box = fitted_box(*it);
-      if (info_[*it].parent >= 0) set_child_box(info_[*it].parent, info_[*it].slot, info_[*it].box);
-    }
-  }
+  void set_margin(double m) { bvh_detail::set_margin(core_, m); }
   /// The margin of leaves' boxes (0 unless set_margin() said otherwise).
-  double margin() const { return margin_; }
-
-private:
-  /// insert()'s work, for a shape whose id is already taken.
-  void insert_with_id(const T &shape, std::uint32_t id) {
-    const Box box = fat(bvh_detail::box_of(shape));
-    ++size_;
-    if (root_ < 0) {
-      root_ = new_node(0, -1, 0);
-      info_[root_].box = box;
-      info_[root_].count = 1;
-      leaf_push(root_, shape, id);
-      return;
-    }
-    bvh_detail::IndexStack path;
-    int n = root_;
-    for (;;) {
-      Info &in = info_[n];
-      ++in.count;
-      if (!in.box.contains(box)) {
-        in.box.extend(box);
-        if (in.parent >= 0) set_child_box(in.parent, in.slot, in.box);
-      }
-      if (nodes_[n].num_children == 0) break;
-      path.push(n);
-      n = choose_child(n, box);
-    }
-    if (int(info_[n].count) > split_threshold_ && may_split_at(info_[n].depth)) {
-      // The leaf splits: its shapes and the new one go straight to the build
-      // (pushing first could move the slot to a larger class for nothing).
-      std::vector<Tagged> shapes;
-      shapes.reserve(info_[n].count);
-      take_shapes(n, shapes);
-      shapes.push_back(Tagged{shape, id});
-      build(n, shapes);
-    } else {
-      leaf_push(n, shape, id);
-    }
-    rebalance_path(path, n);
-  }
-
-public:
+  double margin() const { return core_.margin; }
 
   /// True iff some stored shape intersects `shape` (touching counts).
   /// Subtrees whose box misses the shape's box are never visited; the final
   /// test is T's intersect() (for this project's shapes, intersect.h's
   /// exact predicate; on the course's server, the course's own).
-  bool collision(const T &shape) const {
-    if (root_ < 0) return false;
-    const Box box = bvh_detail::box_of(shape);
-    if (!info_[root_].box.overlaps(box)) return false;
-    const Probe probe = Probe::around(box);
-    // Children holding the probe's centre first: a hit there is likely.
-    return !walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-      const Node &node = nodes_[n];
-      if (node.num_children == 0) {
-        for (const T &s : leaf_shapes(node))
-          if (intersect(s, shape)) return kStop;
-        return 0;
-      }
-      unsigned hits, near;
-      child_masks(node, probe, hits, near);
-      return hits | near << kFirst; // near is a subset of hits
-    });
-  }
-
-  /// Removes the shape at `pos` and returns the iterator to the shape that
-  /// followed it (end() after the last). Every other iterator is
-  /// invalidated, but the remaining shapes keep their iteration order, so
-  /// erasing while iterating (`it = tree.erase(it)`) visits each shape once.
-  /// O(log n) amortized: see erase_at() for the repairs.
-  iterator erase(iterator pos) {
-    BVH_ASSERT(pos.tree_ == this, "erase() with an iterator of another tree (or a singular one)");
-    BVH_ASSERT(pos.leaf_ >= 0, "erase(end())");
-    // Catches most stale iterators (changes invalidate them), not all.
-    BVH_ASSERT(std::size_t(pos.leaf_) < nodes_.size() && nodes_[pos.leaf_].num_children == 0 &&
-                   pos.index_ < shapes_of(pos.leaf_).size(),
-               "erase() with an invalidated iterator");
-    const std::size_t rank = rank_of(pos);
-    const std::uint32_t id = pool_.ids(info_[pos.leaf_].shapes)[pos.index_];
-    erase_at(pos.leaf_, pos.index_);
-    free_id(id);
-    return iterator_at(rank);
-  }
-
-  /// Removes every stored shape equal to `value` and returns how many there
-  /// were. Only subtrees whose box holds value's box are searched. Needs
-  /// `operator==` on T (the course's shapes have none: there, erase by
-  /// iterator), and compiles only when used.
-  std::size_t erase(const T &value) {
-    std::size_t removed = 0;
-    int leaf;
-    std::size_t index;
-    while (find_equal(value, leaf, index)) {
-      const std::uint32_t id = pool_.ids(info_[leaf].shapes)[index];
-      erase_at(leaf, index);
-      free_id(id);
-      ++removed;
-    }
-    return removed;
-  }
+  bool collision(const T &shape) const { return bvh_detail::collides(core_, shape); }
 
   /// Calls f(shape) for every stored shape whose box overlaps `box`
   /// (touching counts). If f returns bool, returning false stops the search.
   template <class F> void query(const BoundingBox &box, F &&f) const {
-    visit_overlapping(Box::of(box), [&](const T &s) { return keep_going(f, s); });
+    bvh_detail::visit_overlapping(core_, Box::of(box), [&](const T &s) { return bvh_detail::keep_going(f, s); });
   }
-
   /// Calls f(shape) for every stored shape that intersects `shape` (by T's
   /// intersect(): exact, touching counts, for this project's shapes). If f
   /// returns bool, returning false stops the search.
   template <class F> void query(const T &shape, F &&f) const {
-    visit_overlapping(bvh_detail::box_of(shape), [&](const T &s) { return !intersect(s, shape) || keep_going(f, s); });
+    bvh_detail::visit_overlapping(core_, bvh_detail::box_of(shape),
+                                  [&](const T &s) { return !intersect(s, shape) || bvh_detail::keep_going(f, s); });
   }
-
   /// Copies every stored shape that intersects `shape` to `out` (an output
   /// iterator, e.g. std::back_inserter(vector)) and returns its end.
   template <class Out> Out query_into(const T &shape, Out out) const {
@@ -1154,9 +2675,8 @@ public:
   }
 
   /// An input iterator over the shapes a query finds, in the order query()
-  /// calls f on them: the search itself, suspended between steps (its stack
-  /// of nodes lives in the iterator, on the call stack for shallow trees).
-  /// Valid while the tree does not change.
+  /// calls f on them: the search itself, suspended between steps. Valid
+  /// while the tree does not change.
   class overlap_iterator {
   public:
     using iterator_category = std::input_iterator_tag;
@@ -1169,62 +2689,28 @@ public:
     overlap_iterator() = default;
     /// The shape found (not at the end).
     reference operator*() const {
-      BVH_ASSERT(at_ != nullptr, "dereferencing the end of an overlapping() range");
-      return *at_;
+      BVH_ASSERT(search_.at() != nullptr, "dereferencing the end of an overlapping() range");
+      return *search_.at();
     }
     pointer operator->() const { return &**this; }
     /// The next shape found (the end after the last).
     overlap_iterator &operator++() {
-      BVH_ASSERT(at_ != nullptr, "incrementing the end of an overlapping() range");
-      find_next();
+      BVH_ASSERT(search_.at() != nullptr, "incrementing the end of an overlapping() range");
+      search_.next();
       return *this;
     }
     /// Steps on; returns nothing (an input iterator's post-increment).
     void operator++(int) { ++*this; }
     /// Equal when both are at the end or at the same shape.
-    friend bool operator==(const overlap_iterator &a, const overlap_iterator &b) { return a.at_ == b.at_; }
-    friend bool operator!=(const overlap_iterator &a, const overlap_iterator &b) { return a.at_ != b.at_; }
+    friend bool operator==(const overlap_iterator &a, const overlap_iterator &b) {
+      return a.search_.at() == b.search_.at();
+    }
+    friend bool operator!=(const overlap_iterator &a, const overlap_iterator &b) { return !(a == b); }
 
   private:
     friend class BVH;
-    overlap_iterator(const BVH *tree, const Box &box, const T *shape)
-        : tree_(tree), box_(box), probe_(Probe::around(box)) {
-      if (shape) shape_.emplace(*shape);
-      if (tree->root_ < 0 || !tree->info_[tree->root_].box.overlaps(box)) return;
-      stack_.push(tree->root_);
-      find_next();
-    }
-    void find_next() {
-      at_ = nullptr;
-      for (;;) {
-        while (next_ != last_) {
-          const T *s = next_++;
-          if (bvh_detail::box_of(*s).overlaps(box_) && (!shape_ || intersect(*s, *shape_))) {
-            at_ = s;
-            return;
-          }
-        }
-        if (stack_.empty()) return;
-        const int n = stack_.pop();
-        const Node &node = tree_->nodes_[n];
-        if (node.num_children == 0) {
-          next_ = tree_->pool_.data(leaf_slot(node));
-          last_ = next_ + node.child[2];
-          continue;
-        }
-        unsigned hits, near;
-        child_masks(node, probe_, hits, near);
-        for (int c = node.num_children - 1; c >= 0; --c) // left child on top
-          if (hits & (1u << c)) stack_.push(node.child[c]);
-      }
-    }
-    const BVH *tree_ = nullptr;
-    Box box_;
-    Probe probe_ = Probe(0, 0, 0, 0, 0, 0);
-    std::optional<T> shape_; // a copy: the probe may be a temporary
-    bvh_detail::IndexStack stack_;
-    const T *next_ = nullptr, *last_ = nullptr; // the current leaf's shapes not yet looked at
-    const T *at_ = nullptr;                     // nullptr: the end
+    overlap_iterator(const Core &core, const Box &box, const T *shape) : search_(core, box, shape) {}
+    bvh_detail::OverlapSearch<T> search_;
   };
 
   /// What overlapping() returns: a range for range-for.
@@ -1242,24 +2728,23 @@ public:
   /// The shapes query(shape, f) would pass to f, as a lazy range:
   /// `for (const T &s : tree.overlapping(shape))`, stoppable by break. The
   /// search starts at once and each step runs on ++; nothing is allocated
-  /// unless the tree is over 96 levels deep.
+  /// unless the tree is deeper than bvh_detail::IndexStack::kInline levels.
   overlap_range overlapping(const T &shape) const {
-    return overlap_range(overlap_iterator(this, bvh_detail::box_of(shape), &shape));
+    return overlap_range(overlap_iterator(core_, bvh_detail::box_of(shape), &shape));
   }
   /// The shapes query(box, f) would pass to f (boxes that meet `box`).
   overlap_range overlapping(const BoundingBox &box) const {
-    return overlap_range(overlap_iterator(this, Box::of(box), nullptr));
+    return overlap_range(overlap_iterator(core_, Box::of(box), nullptr));
   }
 
   /// A stored shape at the least distance from `p` (by a free
   /// `distance(p, shape)`, as distance.h gives this project's shapes: 0 when
   /// p is inside or on it; needed only when this is used), or nullptr when
-  /// the tree is empty; `*dist` gets the distance. Best-first: nodes in order of their box's distance, stopping
-  /// when the next box is farther than the best shape. Among equally near
-  /// shapes it returns one, not a particular one. O(log n) typically.
+  /// the tree is empty; `*dist` gets the distance (+inf when empty). Among
+  /// equally near shapes, the one of the smallest handle id. O(log n)
+  /// typically (bvh_detail::best_first).
   const T *nearest(const Point &p, double *dist = nullptr) const {
-    return best_first([&](const Box &b) { return b.distance_to(p.x, p.y); },
-                      [&](const T &s) { return distance(p, s); }, dist);
+    return best_one(bvh_detail::PointMetric<Point>{p}, dist);
   }
 
   /// One answer of nearest(p, k, out).
@@ -1268,140 +2753,34 @@ public:
     double distance; ///< distance(p, *shape): 0 when p is inside or on it
     handle id;       ///< its handle
   };
-
   /// Writes to `out` (an output iterator of neighbor, e.g.
   /// std::back_inserter(vector)) the min(k, size()) stored shapes nearest
   /// to `p`, by increasing distance(p, shape) (as nearest(p) measures it);
   /// among equally distant shapes the smaller handle id comes first, so the
-  /// answer is one definite list. Returns out's end. Best-first over the
-  /// nodes, nearest box first, stopping when the next box is farther than
-  /// the k-th shape found: O(log n + k) typically.
+  /// answer is one definite list. Returns out's end. O(log n + k)
+  /// typically.
   template <class Out> Out nearest(const Point &p, std::size_t k, Out out) const {
-    if (k == 0 || root_ < 0) return out;
-    const double px = p.x, py = p.y;
-    // Squared distance from p to child c's float box (rounded outwards, so
-    // never farther than the exact box: a valid bound).
-    auto box_key = [&](const Node &node, int c) {
-      const double dx = std::max({double(node.lo_x[c]) - px, 0.0, px - double(node.hi_x[c])});
-      const double dy = std::max({double(node.lo_y[c]) - py, 0.0, py - double(node.hi_y[c])});
-      return dx * dx + dy * dy;
-    };
-    using Found = std::pair<double, std::uint32_t>; // (distance, id): the order of the answer
-    std::vector<Found> found; // a max-heap of the best min(k, seen) so far
-    found.reserve(std::min(k, size_) + 1);
-    // Past this squared distance nothing can enter the answer (+inf until
-    // k shapes are found; a relative margin covers the rounding of squares).
-    auto bound = [&] {
-      if (found.size() < k) return std::numeric_limits<double>::infinity();
-      const double worst = found.front().first;
-      return worst * worst * (1 + 1e-9) + 1e-300;
-    };
-    using Entry = std::pair<double, int>; // (squared box distance, node)
-    std::vector<Entry> heap;
-    heap.reserve(64);
-    heap.push_back({0.0, root_});
-    while (!heap.empty()) {
-      std::pop_heap(heap.begin(), heap.end(), std::greater<Entry>());
-      const Entry e = heap.back();
-      heap.pop_back();
-      if (e.first > bound()) break;
-      const Node &node = nodes_[e.second];
-      if (node.num_children == 0) {
-        // The leaf's slot from its hot node; the ids only once a shape is
-        // near enough to need its tie-break.
-        const bvh_detail::Span<const T> v = leaf_shapes(node);
-        const std::uint32_t *ids = nullptr;
-        for (std::size_t i = 0; i < v.size(); ++i) {
-          const double d = distance(p, v[i]);
-          if (found.size() == k && d > found.front().first) continue;
-          if (!ids) ids = pool_.ids(leaf_slot(node));
-          const Found f{d, ids[i]};
-          if (found.size() < k) {
-            found.push_back(f);
-            std::push_heap(found.begin(), found.end());
-          } else if (f < found.front()) {
-            std::pop_heap(found.begin(), found.end());
-            found.back() = f;
-            std::push_heap(found.begin(), found.end());
-          }
-        }
-        continue;
-      }
-      const double limit = bound();
-      for (int c = 0; c < node.num_children; ++c) {
-        const double key = box_key(node, c);
-        if (key > limit) continue;
-#if defined(__GNUC__)
-        // Best-first reaches most pushed nodes soon, but only after the
-        // heap reorders: fetching them now hides the miss behind that work.
-        __builtin_prefetch(&nodes_[node.child[c]]);
-#endif
-        heap.push_back({key, node.child[c]});
-        std::push_heap(heap.begin(), heap.end(), std::greater<Entry>());
-      }
-    }
-    std::sort_heap(found.begin(), found.end());
-    for (const Found &f : found) *out++ = neighbor{&get(handle{f.second}), f.first, handle{f.second}};
+    std::vector<bvh_detail::Found<T>> found;
+    bvh_detail::best_first(core_, bvh_detail::PointMetric<Point>{p}, k, found);
+    for (const auto &f : found) *out++ = neighbor{f.shape, f.key, handle{f.id}};
     return out;
   }
 
   /// The first stored shape met by the ray origin + t * direction, t >= 0
   /// (t = 0 when the origin lies inside or on a shape), or nullptr when the
-  /// ray meets none; `*t` gets the ray parameter of the hit. Best-first by
-  /// the ray's entry into each box, as nearest(). Needs a free
-  /// `ray_hit(origin, direction, shape)` (distance.h), only when used.
+  /// ray meets none; `*t` gets the ray parameter of the hit (+inf for
+  /// none). Among shapes met at the same t, the one of the smallest handle
+  /// id. Needs a free `ray_hit(origin, direction, shape)` (distance.h), only
+  /// when used.
   const T *first_hit(const Point &origin, const Point &direction, double *t = nullptr) const {
-    return best_first([&](const Box &b) { return b.ray_entry(origin.x, origin.y, direction.x, direction.y); },
-                      [&](const T &s) { return ray_hit(origin, direction, s); }, t);
+    return best_one(bvh_detail::RayMetric<Point>{origin, direction}, t);
   }
 
   /// Calls f(a, b) once for every unordered pair of stored shapes that
   /// intersect (by T's intersect(); exact, touching counts, for this
-  /// project's shapes); if f returns bool, false stops.
-  /// A simultaneous traversal of the tree against itself: a pair of nodes
-  /// is opened only when their boxes overlap, so the cost is O(n log n + k)
-  /// for k pairs on well-spread scenes, against O(n^2) for a scan.
-  template <class F> void for_each_overlapping_pair(F &&f) const {
-    if (root_ < 0) return;
-    std::vector<std::pair<int, int>> stack{{root_, root_}};
-    while (!stack.empty()) {
-      auto [a, b] = stack.back();
-      stack.pop_back();
-      const Node &na = nodes_[a];
-      if (a == b) {
-        if (na.num_children == 0) {
-          const bvh_detail::Span<const T> v = shapes_of(a);
-          for (std::size_t i = 0; i < v.size(); ++i)
-            for (std::size_t j = i + 1; j < v.size(); ++j)
-              if (bvh_detail::box_of(v[i]).overlaps(bvh_detail::box_of(v[j])) && intersect(v[i], v[j]) &&
-                  !keep_going(f, v[i], v[j]))
-                return;
-          continue;
-        }
-        for (int c = 0; c < na.num_children; ++c) {
-          stack.push_back({na.child[c], na.child[c]});
-          for (int d = c + 1; d < na.num_children; ++d)
-            if (info_[na.child[c]].box.overlaps(info_[na.child[d]].box)) stack.push_back({na.child[c], na.child[d]});
-        }
-        continue;
-      }
-      const Node &nb = nodes_[b];
-      if (na.num_children == 0 && nb.num_children == 0) {
-        for (const T &s : shapes_of(a))
-          for (const T &u : shapes_of(b))
-            if (bvh_detail::box_of(s).overlaps(bvh_detail::box_of(u)) && intersect(s, u) && !keep_going(f, s, u))
-              return;
-        continue;
-      }
-      // Open the inner node of the two, the larger box when both are.
-      if (na.num_children == 0 || (nb.num_children != 0 && info_[b].box.area() > info_[a].box.area()))
-        std::swap(a, b);
-      const Node &open = nodes_[a];
-      for (int c = 0; c < open.num_children; ++c)
-        if (info_[open.child[c]].box.overlaps(info_[b].box)) stack.push_back({open.child[c], b});
-    }
-  }
-
+  /// project's shapes); if f returns bool, false stops. O(n log n + pairs)
+  /// on well-spread scenes.
+  template <class F> void for_each_overlapping_pair(F &&f) const { bvh_detail::for_each_overlapping_pair(core_, f); }
   /// The number of unordered pairs of stored shapes that intersect.
   std::size_t count_overlapping_pairs() const {
     std::size_t k = 0;
@@ -1413,1116 +2792,63 @@ public:
   /// pre-order, then node count, max depth and the two area sums of the
   /// surface area heuristic (areas in units of the 1000x1000 canvas).
   void statistics(bool print_tree) const { statistics(std::cout, print_tree); }
-
   /// The same report, to any stream.
-  void statistics(std::ostream &ostr, bool print_tree) const {
-    long node_count = 0;
-    int max_depth = 0;
-    double inner_area = 0, leaf_area = 0;
-    std::string line;
-    char buf[64];
-    for_each_preorder([&](int n) {
-      const Info &in = info_[n];
-      const bool leaf = nodes_[n].num_children == 0;
-      const double area = in.box.area() / kCanvasArea;
-      ++node_count;
-      max_depth = std::max(max_depth, in.depth);
-      if (leaf)
-        leaf_area += area * double(in.count);
-      else
-        inner_area += area;
-      if (!print_tree) return;
-      // The course's stream is not yet in fixed mode when it prints the
-      // root, so the root's area shows 3 significant digits, the rest 3
-      // decimals.
-      std::snprintf(buf, sizeof buf, n == root_ ? "%.3g" : "%.3f", area);
-      line.assign(std::size_t(3) * std::size_t(in.depth), ' ');
-      line += leaf ? "leaf area=" : "inner area=";
-      line += buf;
-      line += ' ';
-      bvh_detail::append_box(line, in.box);
-      if (leaf) {
-        line += " elements:";
-        for (const T &s : shapes_of(n)) {
-          line += ' ';
-          bvh_detail::append_box(line, bvh_detail::box_of(s));
-        }
-      }
-      line += '\n';
-      ostr << line;
-    });
-    std::snprintf(buf, sizeof buf, "node count:      %7ld\n", node_count);
-    ostr << buf;
-    std::snprintf(buf, sizeof buf, "max depth:       %7d\n", max_depth);
-    ostr << buf;
-    std::snprintf(buf, sizeof buf, "inner node area: %7.3f\n", inner_area);
-    ostr << buf;
-    std::snprintf(buf, sizeof buf, "leaf node area:  %7.3f\n", leaf_area);
-    ostr << buf;
-    ostr.flush();
-  }
-
-  /// Draws every node's box translucently (root grey, its children red,
-  /// green and blue, deeper children blended 2/3 parent and 1/3 their own
-  /// primary) and recolours every shape to the colour of its leaf. Boxes
-  /// are drawn by the shape library's BoundingBox::render; colours are
-  /// made with Color(r, g, b) and given to T::setColor.
-  void render_recolor(std::ostream &ostr) {
-    if (root_ < 0) return;
-    struct Rgb {
-      int r, g, b;
-    };
-    static const Rgb primary[3] = {{255, 0, 0}, {0, 255, 0}, {0, 0, 255}};
-    // Channels mixed here, as Color::mix would (the course's mix returns
-    // nothing and this project's returns the mix: neither is relied on).
-    auto blend = [](const Rgb &parent, const Rgb &own) {
-      const float f = 2.0f / 3.0f;
-      return Rgb{int(parent.r * f + own.r * (1 - f)), int(parent.g * f + own.g * (1 - f)),
-                 int(parent.b * f + own.b * (1 - f))};
-    };
-    std::vector<Rgb> rgb(info_.size());
-    rgb[root_] = Rgb{128, 128, 128};
-    for_each_preorder([&](int n) {
-      Info &in = info_[n];
-      if (in.parent >= 0) rgb[n] = in.parent == root_ ? primary[in.slot] : blend(rgb[in.parent], primary[in.slot]);
-      const Color color(rgb[n].r, rgb[n].g, rgb[n].b);
-      BoundingBox(Point(in.box.x0, in.box.y0), Point(in.box.x1, in.box.y1)).render(ostr, color);
-      for (T &s : shapes_of(n)) s.setColor(color);
-    });
-  }
-
-  /// Checks every invariant; on failure returns false and, when `why` is
-  /// given, says which node broke what. Meant for tests: O(n log n).
-  bool validate(std::string *why = nullptr) const {
-    auto fail = [&](int n, const std::string &what) {
-      if (why) *why = "node " + std::to_string(n) + ": " + what;
-      return false;
-    };
-    if (nodes_.size() != info_.size()) return fail(-1, "node arrays differ in size");
-    if (root_ < 0) {
-      if (size_ != 0) return fail(-1, "empty tree with size " + std::to_string(size_));
-      if (node_count() != 0) return fail(-1, "empty tree with live nodes");
-      if (!loc_.empty() || !free_ids_.empty()) return fail(-1, "empty tree with ids");
-      return true;
-    }
-    std::vector<char> is_free(nodes_.size(), 0);
-    for (int f : free_) {
-      if (f < 0 || std::size_t(f) >= nodes_.size() || is_free[f]) return fail(f, "bad free-list entry");
-      is_free[f] = 1;
-    }
-    std::size_t counted = 0, reached = 0;
-    bool ok = true;
-    for_each_preorder([&](int n) {
-      if (!ok) return;
-      ++reached;
-      const Node &node = nodes_[n];
-      const Info &in = info_[n];
-      if (is_free[n]) ok = fail(n, "reachable node on the free list");
-      Box tight;
-      std::size_t count = 0;
-      if (n == root_) {
-        if (in.parent != -1 || in.depth != 0) ok = fail(n, "root has a parent or depth != 0");
-      } else {
-        const Node &p = nodes_[in.parent];
-        if (in.depth != info_[in.parent].depth + 1) ok = fail(n, "depth is not parent's + 1");
-        if (in.slot < 0 || in.slot >= p.num_children || p.child[in.slot] != n)
-          ok = fail(n, "parent does not list it in its slot");
-        else if (p.lo_x[in.slot] != bvh_detail::float_down(in.box.x0) ||
-                 p.lo_y[in.slot] != bvh_detail::float_down(in.box.y0) ||
-                 p.hi_x[in.slot] != bvh_detail::float_up(in.box.x1) ||
-                 p.hi_y[in.slot] != bvh_detail::float_up(in.box.y1))
-          ok = fail(n, "parent's float box for it is not its box rounded outwards");
-      }
-      if (depth_limit_ != unlimited && in.depth > depth_limit_) ok = fail(n, "deeper than depth_limit");
-      if (node.num_children == 0) {
-        const bvh_detail::Span<const T> shapes = shapes_of(n);
-        if (shapes.empty()) ok = fail(n, "empty leaf");
-        if (node.child[0] != std::int32_t(in.shapes.index) || node.child[1] != std::int32_t(in.shapes.cls) ||
-            node.child[2] != std::int32_t(shapes.size()))
-          ok = fail(n, "leaf's hot record disagrees with its slot");
-        if (int(shapes.size()) > split_threshold_ && may_split_at(in.depth))
-          ok = fail(n, "leaf over split_threshold above depth_limit");
-        for (const T &s : shapes) tight.extend(bvh_detail::box_of(s));
-        count = shapes.size();
-        counted += count;
-        const std::uint32_t *ids = shapes.empty() ? nullptr : pool_.ids(in.shapes);
-        for (std::size_t i = 0; ok && i < shapes.size(); ++i)
-          if (ids[i] >= loc_.size() || loc_[ids[i]].leaf != n || loc_[ids[i]].index != i)
-            ok = fail(n, "shape " + std::to_string(i) + "'s id does not locate it");
-        // With a margin a leaf's box may be larger than fat(tight): update()
-        // leaves it as it is while the shapes stay inside.
-        if (margin_ > 0 && in.box.contains(tight)) tight = in.box;
-      } else {
-        if (in.has_shapes) ok = fail(n, "inner node holds shapes");
-        if (node.num_children < 2 || node.num_children > 3) ok = fail(n, "inner node without 2 or 3 children");
-        if (node.num_children == 2 && split_threshold_ != 1)
-          ok = fail(n, "2 children although split_threshold > 1");
-        for (int c = 0; c < node.num_children; ++c) {
-          tight.extend(info_[node.child[c]].box);
-          count += info_[node.child[c]].count;
-        }
-      }
-      if (ok && tight != in.box) ok = fail(n, "box is not the tight box of its subtree");
-      if (ok && count != in.count) ok = fail(n, "shape count is not its subtree's");
-    });
-    if (!ok) return false;
-    if (reached + free_.size() != nodes_.size()) return fail(root_, "unreachable nodes off the free list");
-    if (counted != size_) return fail(root_, "size() disagrees with the shapes stored");
-    if (loc_.size() != size_ + free_ids_.size()) return fail(-1, "ids in use and free do not add up");
-    std::vector<char> id_free(loc_.size(), 0);
-    for (std::uint32_t id : free_ids_) {
-      if (id >= loc_.size() || loc_[id].leaf != -1 || id_free[id])
-        return fail(-1, "free id " + std::to_string(id) + " is in use or listed twice");
-      id_free[id] = 1;
-    }
-    return true;
-  }
-
+  void statistics(std::ostream &ostr, bool print_tree) const { bvh_detail::print_statistics(core_, ostr, print_tree); }
   /// The surface area heuristic cost that statistics() prints, unrounded:
   /// the inner nodes' box areas plus each leaf's box area times its shape
   /// count, in units of the 1000 x 1000 canvas (0 for an empty tree).
   double sah_cost() const {
-    double cost = 0;
-    for_each_preorder([&](int n) {
-      const double area = info_[n].box.area() / kCanvasArea;
-      cost += nodes_[n].num_children == 0 ? area * double(info_[n].count) : area;
-    });
-    return cost;
+    const bvh_detail::Summary s = bvh_detail::summarize(core_);
+    return s.inner_area + s.leaf_area;
   }
-
   /// Depth of the deepest node (0 for a single leaf or an empty tree).
-  int height() const {
-    int h = 0;
-    for_each_preorder([&](int n) { h = std::max(h, info_[n].depth); });
-    return h;
-  }
+  int height() const { return bvh_detail::summarize(core_).max_depth; }
+
+  /// Draws every node's box translucently and recolours every shape to the
+  /// colour of its leaf (the course's picture: bvh_detail::render_recolor).
+  void render_recolor(std::ostream &ostr) { bvh_detail::render_recolor(core_, ostr); }
+
+  /// Checks every invariant; on failure returns false and, when `why` is
+  /// given, says which node broke what. Meant for tests: O(n log n).
+  bool validate(std::string *why = nullptr) const { return bvh_detail::validate(core_, why); }
 
 private:
-  // Areas are reported relative to the course's 1000 x 1000 canvas.
-  static constexpr double kCanvasArea = 1000.0 * 1000.0;
-
-  struct Node { // hot: all a query reads
-    float lo_x[3], lo_y[3], hi_x[3], hi_y[3]; // children's boxes, rounded outwards
-    // Inner node: the children. Leaf: where its shapes are, copied from its
-    // Info by sync_leaf (slot index, slot class, shape count), so that a
-    // query reaches a leaf's shapes without reading the cold Info.
-    std::int32_t child[3];
-    std::int32_t num_children; // 0: leaf
-  };
-  /// The pool slot of leaf `node` (sync_leaf keeps it).
-  static typename bvh_detail::LeafPool<T>::Slot leaf_slot(const Node &node) {
-    return {std::uint32_t(node.child[0]), std::uint32_t(node.child[1])};
-  }
-  /// The shapes of leaf `node`, found from its hot record alone (queries
-  /// never read the cold Info of a leaf).
-  bvh_detail::Span<const T> leaf_shapes(const Node &node) const {
-    return {pool_.data(leaf_slot(node)), std::size_t(node.child[2])};
-  }
-  struct Info { // cold: exact geometry, links, shapes
-    Box box;
-    std::int32_t parent = -1; // -1 for the root
-    std::int32_t slot = 0;    // index in the parent's child[]
-    std::int32_t depth = 0;
-    std::size_t count = 0;    // shapes in the subtree
-    typename bvh_detail::LeafPool<T>::Slot shapes; // leaves: their shapes, in leaf order
-    bool has_shapes = false;                       // shapes names a slot of pool_
-  };
-
-  using Tagged = bvh_detail::Tagged<T>;
-  struct Loc { // where the shape of one id is
-    std::int32_t leaf = -1; // -1: the id is free
-    std::uint32_t index = 0;
-  };
-
-  /// A free id (one given back first), its Loc not yet set.
-  std::uint32_t new_id() {
-    if (!free_ids_.empty()) {
-      const std::uint32_t id = free_ids_.back();
-      free_ids_.pop_back();
-      return id;
-    }
-    if (loc_.size() == std::size_t(std::numeric_limits<std::uint32_t>::max()))
-      throw std::length_error("BVH::insert: more shapes than 32-bit handles can name");
-    loc_.push_back(Loc{});
-    return std::uint32_t(loc_.size() - 1);
-  }
-  /// Gives `id` back; with nothing stored, forgets every id.
-  void free_id(std::uint32_t id) {
-    loc_[id].leaf = -1;
-    if (size_ == 0) {
-      loc_.clear();
-      free_ids_.clear();
-    } else {
-      free_ids_.push_back(id);
-    }
-  }
-  /// Drops every node and shape but keeps the ids (erase_at of the last
-  /// shape, which update() inserts again under its id).
-  void clear_nodes() {
-    nodes_.clear();
-    info_.clear();
-    free_.clear();
-    pool_ = bvh_detail::LeafPool<T>();
-    root_ = -1;
-    size_ = 0;
+  /// The move: `other`'s state for ours, then `other` emptied.
+  void take(BVH &other) noexcept {
+    core_.swap(other.core_);
+    other.core_.clear();
   }
 
-  /// A leaf's box for shapes whose box is `tight`: grown by the margin.
-  Box fat(const Box &tight) const { return margin_ > 0 ? tight.grown(margin_) : tight; }
-  /// Node n's box recomputed from its shapes (leaf) or children's boxes.
-  Box fitted_box(int n) const {
-    Box box;
-    const Node &node = nodes_[n];
-    if (node.num_children == 0) {
-      for (const T &s : shapes_of(n)) box.extend(bvh_detail::box_of(s));
-      return fat(box);
-    }
-    for (int c = 0; c < node.num_children; ++c)
-      if (info_[node.child[c]].count != 0) box.extend(info_[node.child[c]].box);
-    return box;
-  }
-  /// Refits the boxes from node n up, stopping where a box is unchanged.
-  void refit_up(int n) {
-    for (; n >= 0; n = info_[n].parent) {
-      const Box box = fitted_box(n);
-      if (box == info_[n].box) return;
-      info_[n].box = box;
-      if (info_[n].parent >= 0) set_child_box(info_[n].parent, info_[n].slot, box);
-    }
+  /// best_first() for one answer: its shape, with its key in *key.
+  template <class Metric> const T *best_one(const Metric &metric, double *key) const {
+    std::vector<bvh_detail::Found<T>> found;
+    bvh_detail::best_first(core_, metric, 1, found);
+    if (key) *key = found.empty() ? std::numeric_limits<double>::infinity() : found[0].key;
+    return found.empty() ? nullptr : found[0].shape;
   }
 
-  /// The shapes of node n (none for an inner node).
-  bvh_detail::Span<const T> shapes_of(int n) const {
-    const Info &in = info_[n];
-    if (!in.has_shapes) return {nullptr, 0};
-    return {pool_.data(in.shapes), pool_.size(in.shapes)};
-  }
-  bvh_detail::Span<T> shapes_of(int n) {
-    const Info &in = info_[n];
-    if (!in.has_shapes) return {nullptr, 0};
-    return {pool_.data(in.shapes), pool_.size(in.shapes)};
-  }
-  /// Appends a shape with its id to leaf n (giving it a slot if it has none).
-  template <class V> void leaf_push(int n, V &&shape, std::uint32_t id) {
-    Info &in = info_[n];
-    if (!in.has_shapes) {
-      in.shapes = pool_.allocate(1);
-      in.has_shapes = true;
-    }
-    pool_.push_back(in.shapes, std::forward<V>(shape), id);
-    loc_[id] = Loc{n, std::uint32_t(pool_.size(in.shapes) - 1)};
-    sync_leaf(n);
-  }
-  /// Copies leaf n's slot and count into its hot Node.
-  void sync_leaf(int n) {
-    const Info &in = info_[n];
-    Node &node = nodes_[n];
-    node.child[0] = in.has_shapes ? std::int32_t(in.shapes.index) : 0;
-    node.child[1] = in.has_shapes ? std::int32_t(in.shapes.cls) : 0;
-    node.child[2] = in.has_shapes ? std::int32_t(pool_.size(in.shapes)) : 0;
-  }
-  /// Gives leaf n (holding no shapes) the rule's items [begin, end), moved,
-  /// in one slot of their size.
-  template <class Rule> void fill_leaf(int n, Rule &rule, std::size_t begin, std::size_t end) {
-    Info &in = info_[n];
-    in.shapes = pool_.allocate(end - begin);
-    in.has_shapes = true;
-    for (std::size_t i = begin; i < end; ++i) {
-      const std::uint32_t id = rule.id(i);
-      pool_.push_back(in.shapes, std::move(rule.shape(i)), id);
-      loc_[id] = Loc{n, std::uint32_t(i - begin)};
-    }
-    sync_leaf(n);
-  }
-  /// Moves leaf n's shapes, with their ids, to the end of `out` and gives
-  /// its slot back.
-  void take_shapes(int n, std::vector<Tagged> &out) {
-    const bvh_detail::Span<T> v = shapes_of(n);
-    if (v.empty()) return;
-    const std::uint32_t *ids = pool_.ids(info_[n].shapes);
-    for (std::size_t i = 0; i < v.size(); ++i) out.push_back(Tagged{std::move(v[i]), ids[i]});
-    release_shapes(n);
-  }
-  void release_shapes(int n) {
-    Info &in = info_[n];
-    if (in.has_shapes) {
-      pool_.release(in.shapes);
-      in.has_shapes = false;
-      if (nodes_[n].num_children == 0) sync_leaf(n);
-    }
-  }
-
-  bool may_split_at(int depth) const { return depth_limit_ == unlimited || depth < depth_limit_; }
-
-  int new_node(int depth, int parent, int slot) {
-    int n;
-    if (!free_.empty()) {
-      n = free_.back();
-      free_.pop_back();
-    } else {
-      n = int(nodes_.size());
-      nodes_.emplace_back();
-      info_.emplace_back();
-    }
-    reset_node(n, depth, parent, slot);
-    return n;
-  }
-
-  /// Node n as a fresh leaf at `depth`, child `slot` of `parent`.
-  void reset_node(int n, int depth, int parent, int slot) {
-    nodes_[n] = Node();
-    Info &in = info_[n];
-    in.box = Box();
-    in.depth = depth;
-    in.parent = parent;
-    in.slot = slot;
-    in.count = 0;
-    release_shapes(n);
-  }
-
-  void free_node(int n) {
-    release_shapes(n);
-    free_.push_back(n);
-  }
-
-  void set_child_box(int parent, int slot, const Box &box) {
-    Node &p = nodes_[parent];
-    float f[4];
-    bvh_detail::round_out(box, f);
-    p.lo_x[slot] = f[0];
-    p.lo_y[slot] = f[1];
-    p.hi_x[slot] = f[2];
-    p.hi_y[slot] = f[3];
-  }
-
-
-  /// For inner node `node`: bit c of `hits` is set when child c's box meets
-  /// the probe's box, bit c of `near` when it also holds the probe's centre
-  /// (a hit there is likely, so collision() visits those first). With SSE2
-  /// the three children are tested in one 4-lane compare per bound (lane 3
-  /// reads the next field of the node and is masked off); W1's rejects spend
-  /// most of their instructions here. BVH_NO_SIMD forces the scalar path.
-  static void child_masks(const Node &node, const Probe &p, unsigned &hits, unsigned &near) {
-    const unsigned live = (1u << node.num_children) - 1;
-#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
-    const __m128 lx = _mm_loadu_ps(node.lo_x), ly = _mm_loadu_ps(node.lo_y);
-    const __m128 hx = _mm_loadu_ps(node.hi_x), hy = _mm_loadu_ps(node.hi_y);
-    const __m128 meets = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.hi_x), _mm_cmple_ps(p.lo_x, hx)),
-                                    _mm_and_ps(_mm_cmple_ps(ly, p.hi_y), _mm_cmple_ps(p.lo_y, hy)));
-    const __m128 holds = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.mid_x), _mm_cmple_ps(p.mid_x, hx)),
-                                    _mm_and_ps(_mm_cmple_ps(ly, p.mid_y), _mm_cmple_ps(p.mid_y, hy)));
-    hits = unsigned(_mm_movemask_ps(meets)) & live;
-    near = unsigned(_mm_movemask_ps(holds)) & hits;
-#else
-    hits = 0;
-    near = 0;
-    for (int c = 0; c < 3; ++c) {
-      hits |= unsigned((node.lo_x[c] <= p.hi_x) & (p.lo_x <= node.hi_x[c]) & (node.lo_y[c] <= p.hi_y) &
-                       (p.lo_y <= node.hi_y[c]))
-              << c;
-      near |= unsigned((node.lo_x[c] <= p.mid_x) & (p.mid_x <= node.hi_x[c]) & (node.lo_y[c] <= p.mid_y) &
-                       (p.mid_y <= node.hi_y[c]))
-              << c;
-    }
-    hits &= live;
-    near &= hits;
-#endif
-  }
-
-  /// The insertion strategy, part 1: the child whose box grows least in
-  /// area when it takes `box`; ties go to the smaller child, then the first.
-  /// Boxes are the children's float boxes (rounded outwards) kept in the
-  /// parent, so the choice reads one cache line; areas are computed in
-  /// double from those floats.
-  int choose_child(int n, const Box &box) const {
-    const Node &node = nodes_[n];
-    const double bx0 = box.x0, by0 = box.y0, bx1 = box.x1, by1 = box.y1;
-    int best = 0;
-    double best_growth = 0, best_area = 0;
-    for (int c = 0; c < node.num_children; ++c) {
-      const double x0 = node.lo_x[c], y0 = node.lo_y[c], x1 = node.hi_x[c], y1 = node.hi_y[c];
-      const double area = (x1 - x0) * (y1 - y0);
-      const double grown = (std::max(x1, bx1) - std::min(x0, bx0)) * (std::max(y1, by1) - std::min(y0, by0));
-      const double growth = grown - area;
-      if (c == 0 || growth < best_growth || (growth == best_growth && area < best_area)) {
-        best = c;
-        best_growth = growth;
-        best_area = area;
-      }
-    }
-    return node.child[best];
-  }
-
-  /// A child holding more than this share of its parent's shapes makes
-  /// the parent lopsided (a balanced ternary node gives each about 1/3).
-  static constexpr double kLopsided = 0.6;
-  /// Subtrees smaller than this are never rebuilt for balance: their
-  /// imbalance costs less than the rebuild.
-  std::size_t min_rebuild() const { return std::max<std::size_t>(16, 3 * std::size_t(split_threshold_ + 1)); }
-
-  /// The insertion strategy, part 2 (scapegoat-style partial rebuilds).
-  /// Least-growth descent alone grows worse trees than the build rule and,
-  /// under sorted input, a spine as deep as n / k. After each insert, walk
-  /// the path and rebuild, by the build rule, the highest node (of at least
-  /// min_rebuild() shapes) whose child on the path holds more than
-  /// kLopsided of its shapes. A rebuilt subtree of m shapes is balanced by
-  /// count and needs Omega(m) inserts to tip again, so rebuilds cost
-  /// O(log n) amortised per insert per level, and every level shrinks the
-  /// count by at least 1/kLopsided: depth O(log n) for any insertion order.
-  /// Measured on 100,000 disks (k = 4): SAH within 1.07x of the bulk build
-  /// in random order and 1.16x in sorted order (README.txt).
-  /// `path` holds the inner nodes from the root down to the leaf `last`.
-  void rebalance_path(bvh_detail::IndexStack &path, int last) {
-    int scapegoat = -1, below = last;
-    while (!path.empty()) { // bottom-up; the last lopsided node found is the highest
-      const int a = path.pop();
-      const std::size_t count = info_[a].count;
-      if (count >= min_rebuild() && double(info_[below].count) > kLopsided * double(count)) scapegoat = a;
-      below = a;
-    }
-    if (scapegoat >= 0) rebuild(scapegoat);
-  }
-
-  /// f(args...) as "go on?": true unless f returns a bool false.
-  template <class F, class... A> static bool keep_going(F &f, const A &...args) {
-    if constexpr (std::is_same<decltype(f(args...)), bool>::value)
-      return f(args...);
-    else {
-      f(args...);
-      return true;
-    }
-  }
-
-  /// Calls visit(shape) on each shape whose box overlaps `box`, until it
-  /// returns false.
-  template <class V> void visit_overlapping(const Box &box, V &&visit) const {
-    if (root_ < 0 || !info_[root_].box.overlaps(box)) return;
-    const Probe probe = Probe::around(box);
-    walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-      const Node &node = nodes_[n];
-      if (node.num_children == 0) {
-        for (const T &s : leaf_shapes(node))
-          if (bvh_detail::box_of(s).overlaps(box) && !visit(s)) return kStop;
-        return 0;
-      }
-      unsigned hits, near;
-      child_masks(node, probe, hits, near);
-      return hits;
-    });
-  }
-
-  /// Best-first search for the shape of least `shape_key`, where
-  /// box_key(node box) never exceeds the key of a shape inside the box (up
-  /// to rounding, allowed for by a relative margin). +inf keys are misses.
-  template <class BoxKey, class ShapeKey>
-  const T *best_first(BoxKey &&box_key, ShapeKey &&shape_key, double *out) const {
-    const double inf = std::numeric_limits<double>::infinity();
-    const T *best = nullptr;
-    double best_key = inf;
-    if (root_ >= 0) {
-      using Entry = std::pair<double, int>;
-      std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> heap;
-      const double k0 = box_key(info_[root_].box);
-      if (k0 < inf) heap.push({k0, root_});
-      while (!heap.empty()) {
-        const auto [key, n] = heap.top();
-        heap.pop();
-        if (best && key > best_key * (1 + 1e-12) + 1e-300) break;
-        const Node &node = nodes_[n];
-        if (node.num_children == 0) {
-          for (const T &s : shapes_of(n)) {
-            const double k = shape_key(s);
-            if (k < best_key) {
-              best_key = k;
-              best = &s;
-            }
-          }
-          continue;
-        }
-        for (int c = 0; c < node.num_children; ++c) {
-          const double k = box_key(info_[node.child[c]].box);
-          if (k < inf) heap.push({k, node.child[c]});
-        }
-      }
-    }
-    if (out) *out = best_key;
-    return best;
-  }
-
-  /// Shapes before `pos` in iteration order (size() for end()).
-  std::size_t rank_of(const iterator &pos) const {
-    if (pos.leaf_ < 0) return size_;
-    std::size_t rank = pos.index_;
-    for (int n = pos.leaf_; n != root_; n = info_[n].parent) {
-      const Node &p = nodes_[info_[n].parent];
-      for (int c = 0; c < info_[n].slot; ++c) rank += info_[p.child[c]].count;
-    }
+  /// Shapes before shape `index` of `leaf` in iteration order.
+  std::size_t rank_of(int leaf, std::size_t index) const {
+    std::size_t rank = index;
+    for (int n = leaf, parent; (parent = core_.nodes.info(n).parent) >= 0; n = parent)
+      for (int c = 0; c < core_.nodes.info(n).child_index; ++c)
+        rank += core_.nodes.info(core_.nodes.node(parent).child(c)).count;
     return rank;
   }
-
   /// The iterator to the shape of rank `rank` (end() past the last).
   iterator iterator_at(std::size_t rank) const {
-    if (rank >= size_) return end();
-    int n = root_;
-    while (nodes_[n].num_children != 0) {
-      const Node &node = nodes_[n];
+    if (rank >= core_.size) return end();
+    int n = core_.root;
+    while (!core_.nodes.node(n).is_leaf()) {
+      const bvh_detail::Node &node = core_.nodes.node(n);
       int c = 0;
-      while (rank >= info_[node.child[c]].count) rank -= info_[node.child[c]].count, ++c;
-      n = node.child[c];
+      while (rank >= core_.nodes.info(node.child(c)).count) rank -= core_.nodes.info(node.child(c)).count, ++c;
+      n = node.child(c);
     }
     return iterator(this, n, rank);
   }
 
-  /// Finds a stored shape equal to `value`: its leaf and index.
-  bool find_equal(const T &value, int &leaf, std::size_t &index) const {
-    const Box box = bvh_detail::box_of(value);
-    if (root_ < 0 || !info_[root_].box.contains(box)) return false;
-    // A float child box is its exact box rounded outwards: it holds `box`
-    // whenever the exact one does.
-    return !walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-      const Node &node = nodes_[n];
-      if (node.num_children == 0) {
-        const bvh_detail::Span<const T> v = shapes_of(n);
-        for (std::size_t i = 0; i < v.size(); ++i)
-          if (v[i] == value) {
-            leaf = n;
-            index = i;
-            return kStop;
-          }
-        return 0;
-      }
-      unsigned enter = 0;
-      for (int c = 0; c < node.num_children; ++c)
-        enter |= unsigned(node.lo_x[c] <= box.x0 && node.lo_y[c] <= box.y0 && box.x1 <= node.hi_x[c] &&
-                          box.y1 <= node.hi_y[c])
-                 << c;
-      return enter;
-    });
-  }
-
-  /// Removes shape `index` of leaf `leaf`, then mends the tree:
-  ///  1. counts and tight boxes are refitted from the leaf to the root;
-  ///  2. the highest ancestor left with at most split_threshold shapes, or
-  ///     else the parent of a leaf left empty, is rebuilt from its shapes
-  ///     (a leaf, or 3 children again): no empty leaf, no inner node with
-  ///     too few children or too few shapes;
-  ///  3. the highest ancestor whose largest child now holds more than
-  ///     kLopsided of its shapes is rebuilt, as insert's rebalance_path
-  ///     does, so depth stays O(log n) under any churn.
-  /// Rebuilds here split the shapes in their leaf order (build_in_order), so
-  /// iteration order survives an erase. A rebuild of m shapes costs O(m log
-  /// m) and, as for inserts, needs Omega(m) erases below the node to recur.
-  void erase_at(int leaf, std::size_t index) {
-    pool_.erase(info_[leaf].shapes, index);
-    sync_leaf(leaf);
-    {
-      const std::uint32_t *ids = pool_.ids(info_[leaf].shapes);
-      for (std::size_t i = index, n = pool_.size(info_[leaf].shapes); i < n; ++i) loc_[ids[i]].index = std::uint32_t(i);
-    }
-    if (--size_ == 0) {
-      clear_nodes();
-      return;
-    }
-    // 1. Refit, bottom-up (above the first box that does not change, only
-    // the counts do), and 2. find the node to mend on the way.
-    int mend = shapes_of(leaf).empty() ? info_[leaf].parent : -1;
-    bool refit = true;
-    for (int n = leaf; n >= 0; n = info_[n].parent) {
-      Info &in = info_[n];
-      --in.count;
-      if (refit) {
-        const Box box = fitted_box(n);
-        refit = box != in.box;
-        in.box = box;
-        if (refit && in.parent >= 0 && in.count != 0) set_child_box(in.parent, in.slot, box);
-      }
-      if (n != leaf && in.count <= std::size_t(split_threshold_)) mend = n; // the highest wins
-    }
-    if (mend >= 0) rebuild(mend, true);
-    // 3. Balance: the highest lopsided ancestor of what changed.
-    int scapegoat = -1;
-    for (int a = mend >= 0 ? mend : leaf; a >= 0; a = info_[a].parent) {
-      const Node &node = nodes_[a];
-      if (node.num_children == 0 || info_[a].count < min_rebuild()) continue;
-      std::size_t largest = 0;
-      for (int c = 0; c < node.num_children; ++c) largest = std::max(largest, info_[node.child[c]].count);
-      if (double(largest) > kLopsided * double(info_[a].count)) scapegoat = a;
-    }
-    if (scapegoat >= 0) rebuild(scapegoat, true);
-  }
-
-  // ---- Building: one top-down loop that every build rule plugs into -------
-  //
-  // construct(), a leaf's split, and the partial rebuilds of insert and
-  // erase all run build_top_down(). Per node it computes the box and count
-  // of the node's items and makes a leaf when the course says so (at most
-  // split_threshold items, or at depth_limit); otherwise the rule cuts the
-  // items into 3 consecutive groups and each non-empty group becomes a
-  // child, children built left to right. A rule supplies only its items,
-  // box(i), shape(i), order_leaf(task) (a leaf's shapes are then taken in
-  // item order) and cut(task, box, cut, child_state):
-  // CourseRule (the course's), SahRule (binned SAH) and InOrderRule (thirds
-  // in the given order, for erase).
-
-  /// True when T stores its centre (getCenter() returns a reference, as
-  /// Disk's does): items then read it from the shape instead of caching a
-  /// copy, 48 bytes instead of 64 for a disk, which the selections move.
-  static constexpr bool kCenterStored = std::is_reference<decltype(std::declval<const T &>().getCenter())>::value;
-  struct CachedCenter { // a triangle's or quad's centre is a sum: computed once
-    bvh_detail::XY center;
-    T shape;
-    std::uint32_t index; // input position: the last tie-break
-    const bvh_detail::XY &centre() const { return center; }
-  };
-  struct StoredCenter {
-    T shape;
-    std::uint32_t index;
-    decltype(auto) centre() const { return shape.getCenter(); }
-  };
-  /// One shape during a course build.
-  using Item = typename std::conditional<kCenterStored, StoredCenter, CachedCenter>::type;
-  static Item make_item(const T &shape, std::uint32_t index) {
-    if constexpr (kCenterStored)
-      return Item{shape, index};
-    else
-      return Item{bvh_detail::XY::of(shape.getCenter()), shape, index};
-  }
-  struct Key { // the order of one node: see CourseRule
-    int axis;       // 0: x, 1: y
-    bool other_too; // compare the other axis before the input position
-  };
-  /// Key's order with the axis and the chain fixed at compile time: the
-  /// selections spend most of a build in this comparison, and a runtime
-  /// axis costs a branch per coordinate read.
-  template <int Axis, bool OtherToo> struct Order {
-    bool operator()(const Item &a, const Item &b) const {
-      const auto &p = a.centre();
-      const auto &q = b.centre();
-      const double pa = Axis == 0 ? p.x : p.y, qa = Axis == 0 ? q.x : q.y;
-      if (pa != qa) return pa < qa;
-      if (OtherToo) {
-        const double po = Axis == 0 ? p.y : p.x, qo = Axis == 0 ? q.y : q.x;
-        if (po != qo) return po < qo;
-      }
-      return a.index < b.index;
-    }
-  };
-  /// Calls f(Order<...>()) for `key`.
-  template <class F> static void with_order(const Key &key, F &&f) {
-    if (key.axis == 0) {
-      if (key.other_too) f(Order<0, true>());
-      else f(Order<0, false>());
-    } else {
-      if (key.other_too) f(Order<1, true>());
-      else f(Order<1, false>());
-    }
-  }
-
-  /// One node to build: its items [begin, end) in the rule's array, the
-  /// rule's state for it, and `block`: with a precomputed layout
-  /// (construct), the index where its children go; -1 when nodes come from
-  /// new_node().
-  template <class State> struct BuildTask {
-    int node;
-    std::size_t begin, end;
-    int block;
-    State state;
-  };
-
-  /// The course's cut of [begin, end): 3 consecutive groups whose sizes
-  /// differ by at most one, larger first (empty ones when fewer than 3).
-  static void cut_in_thirds(std::size_t begin, std::size_t end, std::size_t cut[4]) {
-    const std::size_t n = end - begin, base = n / 3, extra = n % 3;
-    cut[0] = begin;
-    for (int g = 0; g < 3; ++g) cut[g + 1] = cut[g] + base + (std::size_t(g) < extra ? 1 : 0);
-  }
-
-  /// The build rule (the course's, which its expected output follows). A
-  /// node's shapes are ordered by their centre on the longer side of its box
-  /// (x when dx >= dy), ties kept in their current order, and cut in thirds
-  /// (cut_in_thirds); a leaf keeps its shapes in its parent's order.
-  ///
-  /// Doing this with a stable sort at every node costs O(n log^2 n). The
-  /// same groups come from selection (nth_element) if the comparison is a
-  /// strict total order equal to the stable one. The stable order at a node
-  /// compares centres on its axis, then on its parent's axis, its
-  /// grandparent's, ..., then the input position; with only two axes, every
-  /// repeat of an axis in that chain compares coordinates already found
-  /// equal, so the chain shrinks to (this axis, the other axis if any
-  /// ancestor used it, input position). Selection gives O(n log n) overall.
-  /// Each shape travels with its centre and input position (Item), so the
-  /// selections, box scans and the final copy into the leaves stream through
-  /// memory instead of chasing indices.
-  class CourseRule {
-  public:
-    struct State {
-      unsigned axes_used; // bit 0: x, bit 1: y, by the node's ancestors
-      Key parent_key;     // the order the node's shapes arrive in
-      bool has_parent_key;
-    };
-    /// `src`: the shapes the items were made from, for their ids; nullptr
-    /// when the ids are the input positions (construct).
-    CourseRule(std::vector<Item> &items, const std::vector<Tagged> *src) : items_(items), src_(src) {}
-    Box box(std::size_t i) const { return bvh_detail::box_of(items_[i].shape); }
-    T &shape(std::size_t i) { return items_[i].shape; }
-    std::uint32_t id(std::size_t i) const { return src_ ? (*src_)[items_[i].index].id : items_[i].index; }
-    void order_leaf(const BuildTask<State> &t) {
-      // Selection left the range unordered; restore the parent's order.
-      const auto first = items_.begin() + long(t.begin), last = items_.begin() + long(t.end);
-      if (t.state.has_parent_key)
-        with_order(t.state.parent_key, [&](auto order) { std::sort(first, last, order); });
-      else
-        std::sort(first, last, [](const Item &a, const Item &b) { return a.index < b.index; });
-    }
-    void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State child[3]) {
-      const int axis = box.dx() >= box.dy() ? 0 : 1;
-      const Key key{axis, (t.state.axes_used & (2u >> axis)) != 0};
-      cut_in_thirds(t.begin, t.end, cut);
-      const auto first = items_.begin();
-      with_order(key, [&](auto order) {
-        std::nth_element(first + long(cut[0]), first + long(cut[1]), first + long(cut[3]), order);
-        std::nth_element(first + long(cut[1]), first + long(cut[2]), first + long(cut[3]), order);
-      });
-      for (int g = 0; g < 3; ++g) child[g] = State{t.state.axes_used | (1u << axis), key, true};
-    }
-    static State root_state() { return State{0u, Key{0, false}, false}; }
-
-  private:
-    std::vector<Item> &items_;
-    const std::vector<Tagged> *src_;
-  };
-
-  /// The items of SahRule and InOrderRule: the shapes themselves, taken in
-  /// their current order at a leaf; no state carried down.
-  class ShapesAsItems {
-  public:
-    struct State {};
-    explicit ShapesAsItems(std::vector<Tagged> &shapes) : v_(shapes) {}
-    Box box(std::size_t i) const { return bvh_detail::box_of(v_[i].shape); }
-    T &shape(std::size_t i) { return v_[i].shape; }
-    std::uint32_t id(std::size_t i) const { return v_[i].id; }
-    void order_leaf(const BuildTask<State> &) {}
-    static State root_state() { return State{}; }
-
-  protected:
-    std::vector<Tagged> &v_;
-  };
-
-  /// The alternative build rule, binned SAH for a ternary tree. Leaves are
-  /// where the course's rule makes them. Otherwise the shapes' centres are
-  /// binned into kSahBins slots along each axis, and the node is cut at the
-  /// two bin boundaries, on the axis, that minimise the surface area
-  /// heuristic sum over the 3 groups of (box area x shape count), the
-  /// quantity the statistics print; every group must be non-empty. When the
-  /// centres fill fewer than 3 bins on both axes (clusters, duplicates), it
-  /// falls back to the course's cut into thirds by count on the longer side.
-  /// O(n) per level plus O(kSahBins^2) per node: O(n log n) for a balanced
-  /// result.
-  class SahRule : public ShapesAsItems {
-  public:
-    using State = typename ShapesAsItems::State;
-    using ShapesAsItems::ShapesAsItems;
-    void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State *) {
-      std::vector<Tagged> &v = this->v_; // (a dependent base: named through this)
-      Box centres;
-      for (std::size_t i = t.begin; i < t.end; ++i) centres.extend(Box::at(v[i].shape.getCenter()));
-      // Best (axis, first cut, second cut) over both axes.
-      double best_cost = std::numeric_limits<double>::infinity();
-      int best_axis = -1, best_i = 0, best_j = 0;
-      for (int axis = 0; axis < 2; ++axis) {
-        const double lo = axis ? centres.y0 : centres.x0;
-        const double extent = (axis ? centres.y1 : centres.x1) - lo;
-        if (!(extent > 0)) continue;
-        Box bin_box[kSahBins];
-        std::size_t bin_count[kSahBins] = {};
-        for (std::size_t i = t.begin; i < t.end; ++i) {
-          const int b = bin_of(v[i], axis, lo, extent);
-          bin_box[b].extend(bvh_detail::box_of(v[i].shape));
-          ++bin_count[b];
-        }
-        // Groups: bins [0, i), [i, j), [j, kSahBins).
-        Box prefix[kSahBins + 1], suffix[kSahBins + 1];
-        std::size_t prefix_n[kSahBins + 1] = {}, suffix_n[kSahBins + 1] = {};
-        for (int b = 0; b < kSahBins; ++b) {
-          prefix[b + 1] = prefix[b];
-          prefix[b + 1].extend(bin_box[b]);
-          prefix_n[b + 1] = prefix_n[b] + bin_count[b];
-        }
-        for (int b = kSahBins - 1; b >= 0; --b) {
-          suffix[b] = suffix[b + 1];
-          suffix[b].extend(bin_box[b]);
-          suffix_n[b] = suffix_n[b + 1] + bin_count[b];
-        }
-        for (int i = 1; i < kSahBins - 1; ++i) {
-          if (prefix_n[i] == 0) continue;
-          Box middle;
-          std::size_t middle_n = 0;
-          for (int j = i + 1; j < kSahBins; ++j) {
-            middle.extend(bin_box[j - 1]);
-            middle_n += bin_count[j - 1];
-            if (middle_n == 0 || suffix_n[j] == 0) continue;
-            const double cost = prefix[i].area() * double(prefix_n[i]) + middle.area() * double(middle_n) +
-                                suffix[j].area() * double(suffix_n[j]);
-            if (cost < best_cost) {
-              best_cost = cost;
-              best_axis = axis;
-              best_i = i;
-              best_j = j;
-            }
-          }
-        }
-      }
-      const auto first = v.begin() + long(t.begin), last = v.begin() + long(t.end);
-      if (best_axis >= 0) {
-        const double lo = best_axis ? centres.y0 : centres.x0;
-        const double extent = (best_axis ? centres.y1 : centres.x1) - lo;
-        const auto mid1 = std::partition(first, last, [&](const Tagged &s) { return bin_of(s, best_axis, lo, extent) < best_i; });
-        const auto mid2 = std::partition(mid1, last, [&](const Tagged &s) { return bin_of(s, best_axis, lo, extent) < best_j; });
-        cut[0] = t.begin;
-        cut[1] = std::size_t(mid1 - v.begin());
-        cut[2] = std::size_t(mid2 - v.begin());
-        cut[3] = t.end;
-      } else {
-        // Fallback: thirds by count along the longer side of the box.
-        const int axis = box.dx() >= box.dy() ? 0 : 1;
-        cut_in_thirds(t.begin, t.end, cut);
-        auto less = [axis](const Tagged &a, const Tagged &b) {
-          return axis ? a.shape.getCenter().y < b.shape.getCenter().y : a.shape.getCenter().x < b.shape.getCenter().x;
-        };
-        std::nth_element(first, v.begin() + long(cut[1]), last, less);
-        std::nth_element(v.begin() + long(cut[1]), v.begin() + long(cut[2]), last, less);
-      }
-    }
-
-  private:
-    static int bin_of(const Tagged &s, int axis, double lo, double extent) {
-      const double c = axis ? s.shape.getCenter().y : s.shape.getCenter().x;
-      return std::min(kSahBins - 1, int(double(kSahBins) * (c - lo) / extent));
-    }
-  };
-  /// Bins per axis of the SAH build.
-  static constexpr int kSahBins = 16;
-
-  /// Thirds in the order given, without sorting: where leaf order must
-  /// survive (erase). Shapes that come out of a subtree in leaf order are
-  /// already spatially grouped.
-  class InOrderRule : public ShapesAsItems {
-  public:
-    using State = typename ShapesAsItems::State;
-    using ShapesAsItems::ShapesAsItems;
-    void cut(const BuildTask<State> &t, const Box &, std::size_t cut[4], State *) { cut_in_thirds(t.begin, t.end, cut); }
-  };
-
-  /// The shared loop: builds every task of `tasks` (and what they spawn) by
-  /// `rule`. Tasks whose node is at depth `defer_depth` are not built but
-  /// moved to `*deferred` (construct's parallel part builds them).
-  template <class Rule>
-  void build_top_down(std::vector<BuildTask<typename Rule::State>> &tasks, Rule &rule, const bvh_detail::Layout *layout,
-                      int defer_depth = -1, std::vector<BuildTask<typename Rule::State>> *deferred = nullptr) {
-    using Task = BuildTask<typename Rule::State>;
-    while (!tasks.empty()) {
-      const Task t = tasks.back();
-      tasks.pop_back();
-      Info &in = info_[t.node];
-      const int depth = in.depth;
-      if (deferred && depth == defer_depth) {
-        deferred->push_back(t);
-        continue;
-      }
-      Box box;
-      for (std::size_t i = t.begin; i < t.end; ++i) box.extend(rule.box(i));
-      box = fat(box); // (a grown union is the union of the grown boxes)
-      const std::size_t n = t.end - t.begin;
-      in.box = box;
-      in.count = n;
-      if (in.parent >= 0) set_child_box(in.parent, in.slot, box);
-      if (n <= std::size_t(split_threshold_) || !may_split_at(depth)) {
-        rule.order_leaf(t);
-        nodes_[t.node].num_children = 0;
-        // A laid-out build (construct) gathers every leaf's shapes at the
-        // end, in one pass, with no thread touching the pool.
-        if (!layout) fill_leaf(t.node, rule, t.begin, t.end);
-        continue;
-      }
-      std::size_t cut[4];
-      typename Rule::State state[3];
-      rule.cut(t, box, cut, state);
-      Task child[3];
-      int children = 0;
-      const int groups = (cut[1] > cut[0]) + (cut[2] > cut[1]) + (cut[3] > cut[2]);
-      int grandchildren = t.block + groups; // laid out: where the next child's children go
-      for (int g = 0; g < 3; ++g) {
-        if (cut[g + 1] == cut[g]) continue;
-        int c, block = -1;
-        if (layout) {
-          c = t.block + children;
-          reset_node(c, depth + 1, t.node, children);
-          block = grandchildren;
-          grandchildren += int(layout->nodes(cut[g + 1] - cut[g], depth + 1)) - 1;
-        } else {
-          c = new_node(depth + 1, t.node, children);
-        }
-        nodes_[t.node].child[children] = c;
-        child[children++] = Task{c, cut[g], cut[g + 1], block, state[g]};
-      }
-      nodes_[t.node].num_children = children;
-      for (int c = children - 1; c >= 0; --c) tasks.push_back(child[c]); // built left to right
-    }
-  }
-
-  /// Builds at leaf `at` from `shapes` by the rule in use (a split or a
-  /// partial rebuild: nodes from new_node()).
-  void build(int at, const std::vector<Tagged> &shapes) {
-    const Box before = info_[at].box;
-    if (build_rule_ == BuildRule::sah) {
-      std::vector<Tagged> v(shapes);
-      SahRule rule(v);
-      std::vector<BuildTask<typename SahRule::State>> tasks{{at, 0, v.size(), -1, SahRule::root_state()}};
-      build_top_down(tasks, rule, nullptr);
-      refit_above(at, before);
-      return;
-    }
-    CourseRule rule(fill_items(shapes.size(), [&](std::size_t i) -> const T & { return shapes[i].shape; }), &shapes);
-    std::vector<BuildTask<typename CourseRule::State>> &tasks = scratch_.value.tasks;
-    tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule::root_state()});
-    build_top_down(tasks, rule, nullptr);
-    refit_above(at, before);
-  }
-
-  /// Builds at leaf `at` from `shapes`, keeping their order (InOrderRule).
-  void build_in_order(int at, std::vector<Tagged> &shapes) {
-    const Box before = info_[at].box;
-    InOrderRule rule(shapes);
-    std::vector<BuildTask<typename InOrderRule::State>> tasks{{at, 0, shapes.size(), -1, InOrderRule::root_state()}};
-    build_top_down(tasks, rule, nullptr);
-    refit_above(at, before);
-  }
-
-  /// The reused item array, filled with shape(i) for i < n (input
-  /// position = i).
-  template <class Shape> std::vector<Item> &fill_items(std::size_t n, Shape &&shape) {
-    std::vector<Item> &items = scratch_.value.items;
-    // (clear and append, not resize: T need not be default-constructible)
-    items.clear();
-    items.reserve(n);
-    for (std::size_t i = 0; i < n; ++i) items.push_back(make_item(shape(i), std::uint32_t(i)));
-    return items;
-  }
-
-  struct BuildScratch {
-    std::vector<Item> items;
-    std::vector<BuildTask<typename CourseRule::State>> tasks;
-  };
-
-  /// Rebuilds the subtree at `at` from its own shapes, taken in leaf order:
-  /// by the build rule, or with `keep_order` by build_in_order.
-  void rebuild(int at, bool keep_order = false) {
-    std::vector<Tagged> shapes;
-    shapes.reserve(info_[at].count);
-    // (free_node leaves a node's children in place, so the walk goes on.)
-    walk(at, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-      take_shapes(n, shapes);
-      if (n != at) free_node(n);
-      return all_children(n);
-    });
-    nodes_[at].num_children = 0;
-    if (keep_order)
-      build_in_order(at, shapes);
-    else
-      build(at, shapes);
-  }
-
-  /// A build's last step. With a margin, leaves that update() left larger
-  /// than their shapes come out of a build fitted again, so the node built
-  /// at `at` may have shrunk: the boxes above it shrink too.
-  void refit_above(int at, const Box &before) {
-    if (info_[at].box != before && info_[at].parent >= 0) refit_up(info_[at].parent);
-  }
-
-  /// Calls f(node index) on every node in pre-order (children left to right).
-  template <class F> void for_each_preorder(F &&f) const {
-    if (root_ < 0) return;
-    walk(root_, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-      f(n);
-      return all_children(n);
-    });
-  }
-
-  /// walk()'s visit result: bit c enters child c (c < num_children); bit
-  /// kFirst + c enters it before every child of the low bits; kStop ends
-  /// the walk.
-  static constexpr unsigned kFirst = 4u, kStop = 1u << 8;
-  /// walk()'s visit result that enters every child of node n.
-  unsigned all_children(int n) const { return (1u << nodes_[n].num_children) - 1; }
-
-  /// The one traversal that collision, query, find_equal, rebuild and
-  /// for_each_preorder share: depth-first from node `from`, each node
-  /// visited before its children. visit(n) returns which children of n to
-  /// enter (none for a leaf) or kStop; within each group children are
-  /// entered left to right. Returns false when a visit stopped it.
-  template <class Visit> BVH_ALWAYS_INLINE bool walk(int from, Visit &&visit) const {
-    bvh_detail::IndexStack stack;
-    int n = from;
-    for (;;) {
-      const unsigned enter = visit(n);
-      if (enter & kStop) return false;
-      const Node &node = nodes_[n];
-      if (node.num_children != 0) {
-        const unsigned first = enter >> kFirst, later = enter & ~first & 7u;
-        // Unrolled: this is collision()'s inner loop.
-        if (later & 4u) stack.push(node.child[2]);
-        if (later & 2u) stack.push(node.child[1]);
-        if (later & 1u) stack.push(node.child[0]);
-        if (first & 4u) stack.push(node.child[2]);
-        if (first & 2u) stack.push(node.child[1]);
-        if (first & 1u) stack.push(node.child[0]);
-      }
-      if (stack.empty()) return true;
-      n = stack.pop();
-    }
-  }
-
-  int leftmost_leaf(int n) const {
-    while (nodes_[n].num_children != 0) n = nodes_[n].child[0];
-    return n;
-  }
-  int rightmost_leaf(int n) const {
-    while (nodes_[n].num_children != 0) n = nodes_[n].child[nodes_[n].num_children - 1];
-    return n;
-  }
-  /// The leaf after `n` in left-to-right order, -1 after the last.
-  int next_leaf(int n) const {
-    while (n != root_) {
-      const int parent = info_[n].parent, slot = info_[n].slot;
-      if (slot + 1 < nodes_[parent].num_children) return leftmost_leaf(nodes_[parent].child[slot + 1]);
-      n = parent;
-    }
-    return -1;
-  }
-  /// The leaf before `n` (undefined before the first, as for any iterator).
-  int prev_leaf(int n) const {
-    while (n != root_) {
-      const int parent = info_[n].parent, slot = info_[n].slot;
-      if (slot > 0) return rightmost_leaf(nodes_[parent].child[slot - 1]);
-      n = parent;
-    }
-    return -1;
-  }
-
-  bvh_detail::BlockVector<Node> nodes_;
-  bvh_detail::BlockVector<Info> info_;
-  std::vector<int> free_; // indices of unused nodes, reused first
-  bvh_detail::LeafPool<T> pool_; // every leaf's shapes
-  std::vector<Loc> loc_;              // by id: where its shape is
-  std::vector<std::uint32_t> free_ids_; // ids given back, reused first
-  int root_ = -1;
-  std::size_t size_ = 0;
-  int split_threshold_;
-  int depth_limit_;
-  BuildRule build_rule_ = BuildRule::course;
-  unsigned build_threads_ = 0; // 0: hardware concurrency
-  double margin_ = 0;          // see set_margin()
-  bvh_detail::Scratch<BuildScratch> scratch_;
+  Core core_;
 };
 
 #endif // BVH_BVH_H

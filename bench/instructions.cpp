@@ -1,0 +1,80 @@
+// bench/instructions.cpp — `make bench-instructions`: one operation of the
+// library per run, with only that operation instrumented, for
+// `valgrind --tool=callgrind --instr-atstart=no`. Instruction counts repeat
+// exactly for the same binary and input whatever the machine is doing, so
+// they compare two versions of bvh.h where wall-clock times on a shared
+// machine cannot. W1, W2 and W3 are bench.cpp's (build/bench --only W1
+// --method ours); this program adds the two dynamic operations:
+//   pairs   construct() of 100k disks r2-7.5, then count_overlapping_pairs()
+//   churn   20k disks grown by insert(), then 50k rounds of erase(value) + insert()
+// Only the operation after the set-up is counted. Prints its result so that
+// two versions can be checked to agree.
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "../bvh.h"
+
+#if __has_include(<valgrind/callgrind.h>)
+#include <valgrind/callgrind.h>
+#else
+#define CALLGRIND_START_INSTRUMENTATION
+#define CALLGRIND_STOP_INSTRUMENTATION
+#endif
+
+namespace {
+
+std::vector<Disk> disks(std::size_t n, double rlo, double rhi, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> xy(0, 1000), r(rlo, rhi);
+  std::vector<Disk> v;
+  v.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = xy(rng), y = xy(rng);
+    v.emplace_back(Point(x, y), r(rng), Color(0, 0, 0));
+  }
+  return v;
+}
+
+int pairs() {
+  const std::vector<Disk> v = disks(100000, 2, 7.5, 2);
+  CALLGRIND_START_INSTRUMENTATION;
+  BVH<Disk> tree(4, BVH<Disk>::unlimited);
+  tree.construct(v);
+  const std::size_t k = tree.count_overlapping_pairs();
+  CALLGRIND_STOP_INSTRUMENTATION;
+  std::printf("pairs: %zu\n", k);
+  return 0;
+}
+
+int churn() {
+  std::vector<Disk> live = disks(20000, 0.5, 2, 4);
+  const std::vector<Disk> fresh = disks(50000, 0.5, 2, 5);
+  std::mt19937_64 rng(6);
+  std::vector<std::size_t> at(fresh.size());
+  for (std::size_t &a : at) a = std::size_t(rng() % live.size());
+  BVH<Disk> tree(4, BVH<Disk>::unlimited);
+  for (const Disk &d : live) tree.insert(d);
+  CALLGRIND_START_INSTRUMENTATION;
+  std::size_t removed = 0;
+  for (std::size_t i = 0; i < fresh.size(); ++i) {
+    removed += tree.erase(live[at[i]]);
+    live[at[i]] = fresh[i];
+    tree.insert(fresh[i]);
+  }
+  CALLGRIND_STOP_INSTRUMENTATION;
+  std::printf("churn: removed %zu, size %zu, height %d, sah %.6f, valid %d\n", removed, tree.size(), tree.height(),
+              tree.sah_cost(), int(tree.validate()));
+  return removed == fresh.size() && tree.validate() ? 0 : 1;
+}
+
+} // namespace
+
+int main(int argc, char **argv) {
+  const std::string what = argc > 1 ? argv[1] : "";
+  if (what == "pairs") return pairs();
+  if (what == "churn") return churn();
+  std::fprintf(stderr, "usage: instructions pairs|churn\n");
+  return 2;
+}
