@@ -1,12 +1,16 @@
 #!/usr/bin/env python3
-"""tests/readme_quotes.py README EXAMPLE.cpp... — every snippet that README
-quotes from an example is still the example's code.
+"""tests/readme_quotes.py DOC... -- EXAMPLE.cpp... — every snippet that the
+documentation quotes from an example is still the example's code.
 
 In an example, the lines between `// [readme:NAME]` and `// [end]` are a
-snippet; README must contain the same lines, in order, one after another
-(leading and trailing blanks of each line and blank lines aside). Prints
+snippet; one of the documents (README.txt, docs/*.txt) must contain the same
+lines, in order, one after another (leading and trailing blanks of each line
+and blank lines aside). The documents are the arguments before `--`, the
+examples those after it; without `--` the first argument is the only
+document (`tests/readme_quotes.py README.txt examples/*.cpp`). Prints
 `ok readme_quotes_FILE_NAME` or `FAIL readme_quotes_FILE_NAME why` per
-snippet (read by tests/run.sh); an example without snippets is a FAIL too.
+snippet (read by tests/run.sh); an example without snippets, and a document
+that cannot be read, is a FAIL too.
 """
 import os
 import re
@@ -42,8 +46,23 @@ def contains(haystack, needle):
 
 
 def main():
-    readme = lines_of(open(sys.argv[1], encoding="utf-8").read())
-    for path in sys.argv[2:]:
+    args = sys.argv[1:]
+    if "--" in args:
+        split = args.index("--")
+        doc_paths, example_paths = args[:split], args[split + 1:]
+    else:
+        doc_paths, example_paths = args[:1], args[1:]
+    if not doc_paths or not example_paths:
+        sys.exit("usage: readme_quotes.py DOC... -- EXAMPLE.cpp...  (or README EXAMPLE.cpp...)")
+    docs = []  # (path, its lines); a snippet must lie within one document
+    for path in doc_paths:
+        try:
+            docs.append((path, lines_of(open(path, encoding="utf-8").read())))
+        except OSError as e:
+            print("FAIL readme_quotes_document_%s cannot read %s: %s"
+                  % (re.sub(r"\W", "_", path), path, e.strerror))
+    names = ", ".join(path for path, _ in docs) or "no document"
+    for path in example_paths:
         base = os.path.splitext(os.path.basename(path))[0]
         try:
             found = snippets(path)
@@ -56,10 +75,11 @@ def main():
             case = "readme_quotes_%s_%s" % (base, name)
             if not body:
                 print("FAIL %s empty snippet" % case)
-            elif contains(readme, body):
+            elif any(contains(lines, body) for _, lines in docs):
                 print("ok %s" % case)
             else:
-                print("FAIL %s README does not quote %s's snippet %s: first line %r" % (case, path, name, body[0]))
+                print("FAIL %s none of %s quotes %s's snippet %s as it is: first line %r"
+                      % (case, names, path, name, body[0]))
 
 
 main()

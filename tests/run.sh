@@ -224,8 +224,9 @@ course_framework() {
   run_suite course_framework bash tests/course_framework.sh
 }
 
-# examples/*.cpp (README's library snippets as programs): each checks its own
-# answers against a scan and ends with "ok"; README must still quote them.
+# examples/*.cpp (the library snippets of README.txt and docs/ as programs):
+# each checks its own answers against a scan and ends with "ok"; README.txt
+# or a docs/*.txt must still quote each snippet (tests/readme_quotes.py).
 examples() {
   local src name
   for src in examples/*.cpp; do
@@ -234,7 +235,7 @@ examples() {
       cat '$OUT/example_$name.txt' && [ \"\$(tail -n 1 '$OUT/example_$name.txt')\" = ok ]"
   done
   if have python3; then
-    python3 tests/readme_quotes.py README.txt examples/*.cpp
+    python3 tests/readme_quotes.py README.txt docs/*.txt -- examples/*.cpp
   else
     bad python3_available "python3 is missing: apt-get install python3"
   fi

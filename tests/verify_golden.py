@@ -3,7 +3,7 @@
 
 Recomputes every golden file of tests/golden.list from the handout's rules,
 written again from scratch in Python (recursive build with a stable sort,
-the incremental strategy of README.txt, discard-overlap sampling with exact
+the insertion strategy of docs/library.txt, discard-overlap sampling with exact
 rational geometry), and compares it with expected_output/. It is how the
 golden files were checked before they were committed, and `make test` runs
 it again so the C++ and this model keep agreeing.
@@ -164,7 +164,7 @@ LOPSIDED = 0.6
 
 
 def insert(root, shape, k, limit):
-    """README.txt's insertion strategy: descend into the child whose float
+    """docs/library.txt's insertion strategy: descend into the child whose float
     box grows least in area (ties: the smaller, then the first), add to the
     leaf, split an overfull leaf above the limit by the build rule, then
     rebuild the highest node on the path (of at least max(16, 3(k+1))
