@@ -29,7 +29,7 @@ LIBCXX_TESTS := $(UNITS:%=$(BUILD)/test_%_libcxx)
 # user's own handler that throws; construct()'s threads under ThreadSanitizer.
 ASSERT_TESTS := $(BUILD)/test_asserts $(BUILD)/test_asserts_ndebug $(BUILD)/test_asserts_throwing
 TSAN_TESTS := $(BUILD)/test_threads_tsan
-# examples/*.cpp: README.txt's library snippets as programs that check themselves.
+# examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
 .PHONY: all test test-build test-build-gcc test-build-libcxx demo bench clean fuzz bench-dynamic bench-builders bench-moving

@@ -170,7 +170,7 @@ private:
 };
 
 /// The node arrays: a vector's interface (index, size, emplace_back) over
-/// fixed blocks of 512 elements. Growing never moves or copies what is
+/// fixed blocks of kBlock elements. Growing never moves or copies what is
 /// stored, so a growing tree never holds two copies of its nodes at once,
 /// as std::vector's doubling would, and the slack is at most one block.
 template <class X> class BlockVector {
@@ -556,7 +556,7 @@ public:
 
   /// Sets node n's box: its exact box and, below the root, the float copy
   /// in its parent, `b` rounded outwards.
-  void set_box(int n, const Box &b) {
+  BVH_ALWAYS_INLINE void set_box(int n, const Box &b) {
     Info &in = info(n);
     in.box_ = b;
     if (in.parent < 0) return;
@@ -570,7 +570,7 @@ public:
     p.hi_y[c] = f[3];
   }
   /// Grows node n's box to hold `b`; true when it grew.
-  bool extend_box(int n, const Box &b) {
+  BVH_ALWAYS_INLINE bool extend_box(int n, const Box &b) {
     if (box(n).contains(b)) return false;
     Box grown = box(n);
     grown.extend(b);
@@ -1779,17 +1779,18 @@ template <class T> std::size_t min_rebuild(const Core<T> &core) {
 /// least 1 / kLopsided: depth O(log n) for any order of changes. Returns -1
 /// when no node is lopsided.
 template <class T> int find_scapegoat(const Core<T> &core, int a, int below, bool any_child) {
+  const NodeStore &nodes = core.nodes;
+  const std::size_t smallest = min_rebuild(core);
   int scapegoat = -1;
-  for (; a >= 0; below = a, a = core.nodes.info(a).parent) {
-    const Node &node = core.nodes.node(a);
-    const std::size_t count = core.nodes.info(a).count;
-    if (node.is_leaf() || count < min_rebuild(core)) continue;
+  for (; a >= 0; below = a, a = nodes.info(a).parent) {
+    const std::size_t count = nodes.info(a).count;
+    if (count < smallest) continue;
     std::size_t heaviest = 0;
     if (any_child) {
-      for (int c = 0; c < node.num_children; ++c)
-        heaviest = std::max(heaviest, core.nodes.info(node.child(c)).count);
+      const Node &node = nodes.node(a);
+      for (int c = 0; c < node.num_children; ++c) heaviest = std::max(heaviest, nodes.info(node.child(c)).count);
     } else {
-      heaviest = core.nodes.info(below).count;
+      heaviest = nodes.info(below).count; // (a is below's parent: an inner node)
     }
     if (double(heaviest) > kLopsided * double(count)) scapegoat = a; // the last found is the highest
   }

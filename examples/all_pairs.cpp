@@ -1,5 +1,5 @@
 // examples/all_pairs.cpp — every intersecting pair of a mixed scene once
-// (README.txt, QUERIES AND ALL PAIRS), against the O(n^2) scan of every
+// (docs/library.txt, QUERIES AND ALL PAIRS), against the O(n^2) scan of every
 // pair (exit status 1 if they differ).
 #include <iostream>
 #include <set>

@@ -1,5 +1,5 @@
 // examples/build_tree.cpp — build a tree over disks, ask whether a disk
-// collides with any of them, walk the tree (README.txt, THE LIBRARY).
+// collides with any of them, walk the tree (README.txt, THE LIBRARY IN TEN LINES).
 // Checks every answer against a scan of the vector; exit status 1 if one
 // differs. make test builds and runs it.
 #include <iostream>

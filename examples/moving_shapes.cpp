@@ -1,4 +1,4 @@
-// examples/moving_shapes.cpp — the moving-shapes API of README.txt (MOVING
+// examples/moving_shapes.cpp — the moving-shapes API of docs/library.txt (MOVING
 // SHAPES): handles from insert(), update() each frame with a margin, the k
 // nearest shapes to a point, and a lazy overlapping() range stopped by
 // break; each answer compared with a scan of the disks (exit status 1 if one

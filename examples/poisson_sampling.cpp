@@ -1,5 +1,5 @@
 // examples/poisson_sampling.cpp — Poisson-disk sampling: keep each candidate
-// disk that touches no disk kept so far (README.txt, THE LIBRARY; what
+// disk that touches no disk kept so far (README.txt, THE LIBRARY IN TEN LINES; what
 // bvh.out --incremental --discard_overlap does). Checks the result against
 // an O(n^2) scan: no two kept disks touch, and every discarded one touches
 // an earlier kept one. Exit status 1 if not.

@@ -1,4 +1,4 @@
-// examples/queries.cpp — the queries of README.txt (QUERIES AND ALL PAIRS):
+// examples/queries.cpp — the queries of docs/library.txt (QUERIES AND ALL PAIRS):
 // shapes in a box, shapes meeting a shape, the nearest shape to a point and
 // the first shape on a ray, each compared with a scan of the vector (exit
 // status 1 if one differs).

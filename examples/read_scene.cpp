@@ -1,5 +1,5 @@
 // examples/read_scene.cpp — read a scene file with scene.h, the reader of
-// bvh.out (README.txt, THE LIBRARY). Run from the project's folder: it reads
+// bvh.out (README.txt, THE LIBRARY IN TEN LINES). Run from the project's folder: it reads
 // inputs/1000.disks and checks the count against the file's lines, then
 // reads a broken copy and checks the "FILE:LINE: what is wrong" message.
 // Exit status 1 if either differs.
