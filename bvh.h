@@ -98,7 +98,7 @@
 #define BVH_ASSERT(condition, message) ((void)0)
 #else
 #define BVH_ASSERT(condition, message)                                                                                \
-  ((condition) ? (void)0 : ::bvh_detail::assertion_failed(message, #condition, __FILE__, __LINE__))
+  ((condition) ? (void)0 : ::bvh::detail::assertion_failed(message, #condition, __FILE__, __LINE__))
 #endif
 #endif
 
@@ -109,7 +109,7 @@
 #define BVH_INVARIANT(condition, message) ((void)0)
 #else
 #define BVH_INVARIANT(condition, message)                                                                             \
-  ((condition) ? (void)0 : ::bvh_detail::invariant_failed(message, #condition, __FILE__, __LINE__))
+  ((condition) ? (void)0 : ::bvh::detail::invariant_failed(message, #condition, __FILE__, __LINE__))
 #endif
 
 // The one traversal routine is inlined into each query that uses it, so
@@ -122,7 +122,8 @@
 #define BVH_LAMBDA_INLINE
 #endif
 
-namespace bvh_detail {
+namespace bvh {
+namespace detail {
 
 /// BVH_ASSERT's report: what was misused, where, then abort().
 [[noreturn]] inline void assertion_failed(const char *message, const char *condition, const char *file, int line) {
@@ -135,6 +136,59 @@ namespace bvh_detail {
   std::fprintf(stderr, "%s:%d: BVH internal error: %s (%s)\n", file, line, message, condition);
   std::abort();
 }
+
+/// intersect(a, b) as the shape type's own (found by argument-dependent
+/// lookup): shape_traits's default. (A function of its own, so that the
+/// call does not find shape_traits's member of the same name.)
+template <class A, class B> bool intersect_adl(const A &a, const B &b) { return intersect(a, b); }
+
+} // namespace detail
+
+// ---- How the tree reads your types: the customization points ------------
+
+/// The four sides of an axis-aligned box, as the tree reads every box.
+struct bounds {
+  double min_x, min_y, max_x, max_y;
+};
+
+/// How the tree reads a box type B. The default reads getMin() and getMax(),
+/// points with x and y (this project's BoundingBox and the course's).
+/// Specialize it for your own box type, e.g. Box2D's b2AABB:
+///   template <> struct bvh::box_traits<b2AABB> {
+///     static bvh::bounds get(const b2AABB &b) {
+///       return {b.lowerBound.x, b.lowerBound.y, b.upperBound.x, b.upperBound.y}; } };
+/// Every box type box_traits understands can be a shape's box and the
+/// argument of query() and overlapping().
+template <class B> struct box_traits {
+  static bounds get(const B &b) {
+    const auto &lo = b.getMin();
+    const auto &hi = b.getMax();
+    return bounds{double(lo.x), double(lo.y), double(hi.x), double(hi.y)};
+  }
+};
+/// bounds itself.
+template <> struct box_traits<bounds> {
+  static bounds get(const bounds &b) { return b; }
+};
+
+/// How the tree reads a stored value of type T: its box, its centre and
+/// whether two of them intersect. The default reads the members getBox()
+/// and getCenter() and calls the free intersect(a, b) found by
+/// argument-dependent lookup, as the course's shapes have them. For a type
+/// of your own, specialize shape_traits<YourType> (static members), or pass
+/// an adaptor type as BVH's second template argument: the tree keeps a copy
+/// of it (given to its constructor), so it may hold state, e.g. pointers to
+/// the arrays that stored ids index (examples/ids_into_arrays.cpp).
+template <class T> struct shape_traits {
+  /// Its box: any type box_traits understands.
+  static decltype(auto) box(const T &s) { return s.getBox(); }
+  /// Its centre, anything with x and y: the build rules sort by it.
+  static decltype(auto) center(const T &s) { return s.getCenter(); }
+  /// True when a and b share a point (touching counts).
+  static bool intersect(const T &a, const T &b) { return detail::intersect_adl(a, b); }
+};
+
+namespace detail {
 
 /// A stack of node indices that lives on the call stack until it outgrows
 /// its inline space: traversals of shallow trees never allocate, deep ones
@@ -284,12 +338,10 @@ struct Box {
   double x0 = std::numeric_limits<double>::infinity(), y0 = std::numeric_limits<double>::infinity();
   double x1 = -std::numeric_limits<double>::infinity(), y1 = -std::numeric_limits<double>::infinity();
 
-  /// The box of `b`, anything with getMin() and getMax() (points with x, y).
-  template <class B> static Box of(const B &b) {
-    const auto &lo = b.getMin();
-    const auto &hi = b.getMax();
-    return Box{lo.x, lo.y, hi.x, hi.y};
-  }
+  /// The box of `b`.
+  static Box of(const bounds &b) { return Box{b.min_x, b.min_y, b.max_x, b.max_y}; }
+  /// The box of `b`, any type box_traits understands.
+  template <class B> static Box from(const B &b) { return of(box_traits<B>::get(b)); }
   /// The box of one point (anything with x and y).
   template <class P> static Box at(const P &p) { return Box{p.x, p.y, p.x, p.y}; }
 
@@ -377,8 +429,11 @@ struct XY {
   template <class P> static XY of(const P &p) { return XY{p.x, p.y}; }
 };
 
-/// The box of a stored shape, read through getBox().getMin()/getMax().
-template <class T> BVH_ALWAYS_INLINE Box box_of(const T &shape) { return Box::of(shape.getBox()); }
+/// The box of a stored shape, as `traits` (its shape_traits) reads it.
+template <class Tr, class T> BVH_ALWAYS_INLINE Box box_of(const Tr &traits, const T &shape) {
+  const auto &b = traits.box(shape);
+  return Box::from(b);
+}
 
 /// Appends `[<x0 y0> <x1 y1>]` with every number as %5.1f: the course's
 /// listing of a box, written here so that neither the stream's flags nor
@@ -1111,7 +1166,7 @@ enum class BuildRule {
   sah     ///< binned surface area heuristic (SahRule): the cut of least area cost
 };
 
-template <class T> struct BuildScratch;
+template <class T, class Tr> struct BuildScratch;
 
 /// The state every operation shares: the nodes, the leaves' shapes and
 /// ids, the root, and the parameters of the tree. Sections 5 to 8 work on
@@ -1119,7 +1174,8 @@ template <class T> struct BuildScratch;
 /// (NodeStore the two copies of a box, LeafStore the records and ids); the
 /// operations here keep what spans them: a node is reset or freed only
 /// with its slot given back, and a node's box is its subtree's.
-template <class T> struct Core {
+template <class T, class Tr> struct Core {
+  Tr traits; ///< how shapes are read (shape_traits<T> or the user's adaptor)
   NodeStore nodes;
   LeafStore<T> leaves;
   int root = -1;         ///< -1: empty
@@ -1129,12 +1185,14 @@ template <class T> struct Core {
   BuildRule rule = BuildRule::course;
   unsigned build_threads = 0; ///< 0: hardware concurrency
   double margin = 0;          ///< leaves' boxes are their shapes' grown by this
-  Scratch<BuildScratch<T>> scratch;
+  Scratch<BuildScratch<T, Tr>> scratch;
 
-  Core(int split_threshold_, int depth_limit_) : split_threshold(split_threshold_), depth_limit(depth_limit_) {}
+  Core(Tr traits_, int split_threshold_, int depth_limit_)
+      : traits(std::move(traits_)), split_threshold(split_threshold_), depth_limit(depth_limit_) {}
 
   /// Exchanges everything but the scratch memory.
   void swap(Core &o) noexcept {
+    std::swap(traits, o.traits);
     nodes.swap(o.nodes);
     leaves.swap(o.leaves);
     std::swap(root, o.root);
@@ -1185,7 +1243,7 @@ template <class T> struct Core {
     Box box;
     const Node &node = nodes.node(n);
     if (node.is_leaf()) {
-      for (const T &s : leaves.shapes(node)) box.extend(box_of(s));
+      for (const T &s : leaves.shapes(node)) box.extend(box_of(traits, s));
       return fat(box);
     }
     for (int c = 0; c < node.num_children; ++c)
@@ -1218,31 +1276,34 @@ template <class T> struct Core {
 // order, for erase). build_at() is the entry for a subtree, construct() for
 // the whole tree; only construct() lays nodes out in advance and threads.
 
-/// True when T stores its centre (getCenter() returns a reference, as
-/// Disk's does): items then read it from the shape instead of caching a
-/// copy, which makes the items the selections move smaller.
-template <class T>
-constexpr bool kCenterStored = std::is_reference<decltype(std::declval<const T &>().getCenter())>::value;
+/// True when T stores its centre (the traits' center() returns a
+/// reference, as Disk's getCenter() does) and the traits hold no state:
+/// items then read the centre from the shape instead of caching a copy,
+/// which makes the items the selections move smaller.
+template <class T, class Tr>
+constexpr bool kCenterStored =
+    std::is_empty<Tr>::value && std::is_default_constructible<Tr>::value &&
+    std::is_reference<decltype(std::declval<const Tr &>().center(std::declval<const T &>()))>::value;
 /// One shape during a course build, with its centre computed once (a
 /// triangle's or quad's centre is a sum).
-template <class T> struct CachedCenter {
+template <class T, class Tr> struct CachedCenter {
   XY center;
   T shape;
   std::uint32_t index; // input position: the last tie-break
   const XY &centre() const { return center; }
 };
 /// One shape during a course build, whose centre it stores.
-template <class T> struct StoredCenter {
+template <class T, class Tr> struct StoredCenter {
   T shape;
   std::uint32_t index;
-  decltype(auto) centre() const { return shape.getCenter(); }
+  decltype(auto) centre() const { return Tr().center(shape); }
 };
-template <class T> using Item = typename std::conditional<kCenterStored<T>, StoredCenter<T>, CachedCenter<T>>::type;
-template <class T> Item<T> make_item(const T &shape, std::uint32_t index) {
-  if constexpr (kCenterStored<T>)
-    return Item<T>{shape, index};
+template <class T, class Tr> using Item = typename std::conditional<kCenterStored<T, Tr>, StoredCenter<T, Tr>, CachedCenter<T, Tr>>::type;
+template <class T, class Tr> Item<T, Tr> make_item(const Tr &traits, const T &shape, std::uint32_t index) {
+  if constexpr (kCenterStored<T, Tr>)
+    return Item<T, Tr>{shape, index};
   else
-    return Item<T>{XY::of(shape.getCenter()), shape, index};
+    return Item<T, Tr>{XY::of(traits.center(shape)), shape, index};
 }
 
 /// The order of one node: see CourseRule.
@@ -1312,7 +1373,7 @@ inline void cut_in_thirds(std::size_t begin, std::size_t end, std::size_t cut[4]
 /// Each shape travels with its centre and input position (Item), so the
 /// selections, box scans and the final copy into the leaves stream through
 /// memory instead of chasing indices.
-template <class T> class CourseRule {
+template <class T, class Tr> class CourseRule {
 public:
   struct State {
     unsigned axes_used; // bit 0: x, bit 1: y, by the node's ancestors
@@ -1321,8 +1382,9 @@ public:
   };
   /// `src`: the shapes the items were made from, for their ids; nullptr
   /// when the ids are the input positions (construct).
-  CourseRule(std::vector<Item<T>> &items, const std::vector<Tagged<T>> *src) : items_(items), src_(src) {}
-  Box box(std::size_t i) const { return box_of(items_[i].shape); }
+  CourseRule(const Tr &traits, std::vector<Item<T, Tr>> &items, const std::vector<Tagged<T>> *src)
+      : traits_(traits), items_(items), src_(src) {}
+  Box box(std::size_t i) const { return box_of(traits_, items_[i].shape); }
   T &shape(std::size_t i) { return items_[i].shape; }
   std::uint32_t id(std::size_t i) const { return src_ ? (*src_)[items_[i].index].id : items_[i].index; }
   void order_leaf(const BuildTask<State> &t) {
@@ -1331,7 +1393,7 @@ public:
     if (t.state.has_parent_key)
       with_order(t.state.parent_key, [&](auto order) { std::sort(first, last, order); });
     else
-      std::sort(first, last, [](const Item<T> &a, const Item<T> &b) { return a.index < b.index; });
+      std::sort(first, last, [](const Item<T, Tr> &a, const Item<T, Tr> &b) { return a.index < b.index; });
   }
   void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State child[3]) {
     const int axis = box.dx() >= box.dy() ? 0 : 1;
@@ -1347,23 +1409,25 @@ public:
   static State root_state() { return State{0u, Key{0, false}, false}; }
 
 private:
-  std::vector<Item<T>> &items_;
+  const Tr &traits_;
+  std::vector<Item<T, Tr>> &items_;
   const std::vector<Tagged<T>> *src_;
 };
 
 /// The items of SahRule and InOrderRule: the shapes themselves, taken in
 /// their current order at a leaf; no state carried down.
-template <class T> class ShapesAsItems {
+template <class T, class Tr> class ShapesAsItems {
 public:
   struct State {};
-  explicit ShapesAsItems(std::vector<Tagged<T>> &shapes) : v_(shapes) {}
-  Box box(std::size_t i) const { return box_of(v_[i].shape); }
+  ShapesAsItems(const Tr &traits, std::vector<Tagged<T>> &shapes) : traits_(traits), v_(shapes) {}
+  Box box(std::size_t i) const { return box_of(traits_, v_[i].shape); }
   T &shape(std::size_t i) { return v_[i].shape; }
   std::uint32_t id(std::size_t i) const { return v_[i].id; }
   void order_leaf(const BuildTask<State> &) {}
   static State root_state() { return State{}; }
 
 protected:
+  const Tr &traits_;
   std::vector<Tagged<T>> &v_;
 };
 
@@ -1380,14 +1444,14 @@ constexpr int kSahBins = 16;
 /// falls back to the course's cut into thirds by count on the longer side.
 /// O(n) per level plus O(kSahBins^2) per node: O(n log n) for a balanced
 /// result.
-template <class T> class SahRule : public ShapesAsItems<T> {
+template <class T, class Tr> class SahRule : public ShapesAsItems<T, Tr> {
 public:
-  using State = typename ShapesAsItems<T>::State;
-  using ShapesAsItems<T>::ShapesAsItems;
+  using State = typename ShapesAsItems<T, Tr>::State;
+  using ShapesAsItems<T, Tr>::ShapesAsItems;
   void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State *) {
     std::vector<Tagged<T>> &v = this->v_; // (a dependent base: named through this)
     Box centres;
-    for (std::size_t i = t.begin; i < t.end; ++i) centres.extend(Box::at(v[i].shape.getCenter()));
+    for (std::size_t i = t.begin; i < t.end; ++i) centres.extend(Box::at(this->traits_.center(v[i].shape)));
     int best_axis = -1, best_i = 0, best_j = 0;
     best_cut(v, t, centres, best_axis, best_i, best_j);
     const auto first = v.begin() + long(t.begin), last = v.begin() + long(t.end);
@@ -1406,8 +1470,10 @@ public:
       // Fallback: thirds by count along the longer side of the box.
       const int axis = box.dx() >= box.dy() ? 0 : 1;
       cut_in_thirds(t.begin, t.end, cut);
-      auto less = [axis](const Tagged<T> &a, const Tagged<T> &b) {
-        return axis ? a.shape.getCenter().y < b.shape.getCenter().y : a.shape.getCenter().x < b.shape.getCenter().x;
+      const Tr &traits = this->traits_;
+      auto less = [axis, &traits](const Tagged<T> &a, const Tagged<T> &b) {
+        return axis ? traits.center(a.shape).y < traits.center(b.shape).y
+                    : traits.center(a.shape).x < traits.center(b.shape).x;
       };
       std::nth_element(first, v.begin() + long(cut[1]), last, less);
       std::nth_element(v.begin() + long(cut[1]), v.begin() + long(cut[2]), last, less);
@@ -1418,8 +1484,8 @@ private:
   /// The (axis, first cut, second cut) of least SAH cost over both axes:
   /// groups are bins [0, i), [i, j), [j, kSahBins); axis -1 when no cut
   /// leaves every group non-empty.
-  static void best_cut(const std::vector<Tagged<T>> &v, const BuildTask<State> &t, const Box &centres, int &best_axis,
-                       int &best_i, int &best_j) {
+  void best_cut(const std::vector<Tagged<T>> &v, const BuildTask<State> &t, const Box &centres, int &best_axis,
+                       int &best_i, int &best_j) const {
     double best_cost = std::numeric_limits<double>::infinity();
     for (int axis = 0; axis < 2; ++axis) {
       const double lo = axis ? centres.y0 : centres.x0;
@@ -1429,7 +1495,7 @@ private:
       std::size_t bin_count[kSahBins] = {};
       for (std::size_t i = t.begin; i < t.end; ++i) {
         const int b = bin_of(v[i], axis, lo, extent);
-        bin_box[b].extend(box_of(v[i].shape));
+        bin_box[b].extend(box_of(this->traits_, v[i].shape));
         ++bin_count[b];
       }
       Box prefix[kSahBins + 1], suffix[kSahBins + 1];
@@ -1464,8 +1530,8 @@ private:
       }
     }
   }
-  static int bin_of(const Tagged<T> &s, int axis, double lo, double extent) {
-    const double c = axis ? s.shape.getCenter().y : s.shape.getCenter().x;
+  int bin_of(const Tagged<T> &s, int axis, double lo, double extent) const {
+    const double c = axis ? this->traits_.center(s.shape).y : this->traits_.center(s.shape).x;
     return std::min(kSahBins - 1, int(double(kSahBins) * (c - lo) / extent));
   }
 };
@@ -1473,10 +1539,10 @@ private:
 /// Thirds in the order given, without sorting: where leaf order must
 /// survive (erase). Shapes that come out of a subtree in leaf order are
 /// already spatially grouped.
-template <class T> class InOrderRule : public ShapesAsItems<T> {
+template <class T, class Tr> class InOrderRule : public ShapesAsItems<T, Tr> {
 public:
-  using State = typename ShapesAsItems<T>::State;
-  using ShapesAsItems<T>::ShapesAsItems;
+  using State = typename ShapesAsItems<T, Tr>::State;
+  using ShapesAsItems<T, Tr>::ShapesAsItems;
   void cut(const BuildTask<State> &t, const Box &, std::size_t cut[4], State *) { cut_in_thirds(t.begin, t.end, cut); }
 };
 
@@ -1528,24 +1594,24 @@ private:
 };
 
 /// The memory a course build reuses from one build to the next.
-template <class T> struct BuildScratch {
-  std::vector<Item<T>> items;
-  std::vector<BuildTask<typename CourseRule<T>::State>> tasks;
+template <class T, class Tr> struct BuildScratch {
+  std::vector<Item<T, Tr>> items;
+  std::vector<BuildTask<typename CourseRule<T, Tr>::State>> tasks;
 };
 
 /// The reused item array, filled with shape(i) for i < n (input
 /// position = i).
-template <class T, class Shape> std::vector<Item<T>> &fill_items(Core<T> &core, std::size_t n, Shape &&shape) {
-  std::vector<Item<T>> &items = core.scratch.value.items;
+template <class T, class Tr, class Shape> std::vector<Item<T, Tr>> &fill_items(Core<T, Tr> &core, std::size_t n, Shape &&shape) {
+  std::vector<Item<T, Tr>> &items = core.scratch.value.items;
   // (clear and append, not resize: T need not be default-constructible)
   items.clear();
   items.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) items.push_back(make_item(shape(i), std::uint32_t(i)));
+  for (std::size_t i = 0; i < n; ++i) items.push_back(make_item(core.traits, shape(i), std::uint32_t(i)));
   return items;
 }
 
 /// Gives leaf n (owning no slot) the rule's items [begin, end), moved.
-template <class T, class Rule> void fill_leaf(Core<T> &core, int n, Rule &rule, std::size_t begin, std::size_t end) {
+template <class T, class Tr, class Rule> void fill_leaf(Core<T, Tr> &core, int n, Rule &rule, std::size_t begin, std::size_t end) {
   core.leaves.fill(
       core.nodes.node(n), n, end - begin, [&](std::size_t i) -> T & { return rule.shape(begin + i); },
       [&](std::size_t i) { return rule.id(begin + i); });
@@ -1556,8 +1622,8 @@ template <class T, class Rule> void fill_leaf(Core<T> &core, int n, Rule &rule, 
 /// moved to `*deferred` (construct's parallel part builds them). With a
 /// `layout`, children go where it says and leaves get their shapes later
 /// (gather_leaves); without, nodes come from new_node().
-template <class T, class Rule>
-void build_top_down(Core<T> &core, std::vector<BuildTask<typename Rule::State>> &tasks, Rule &rule,
+template <class T, class Tr, class Rule>
+void build_top_down(Core<T, Tr> &core, std::vector<BuildTask<typename Rule::State>> &tasks, Rule &rule,
                     const Layout *layout, int defer_depth = -1,
                     std::vector<BuildTask<typename Rule::State>> *deferred = nullptr) {
   using Task = BuildTask<typename Rule::State>;
@@ -1621,29 +1687,29 @@ enum class Cut {
 /// from `shapes` (reordered). With a margin, leaves that update() left
 /// larger than their shapes come out fitted again, so the node built may
 /// have shrunk: the boxes above it shrink too.
-template <class T> void build_at(Core<T> &core, int at, std::vector<Tagged<T>> &shapes, Cut how) {
+template <class T, class Tr> void build_at(Core<T, Tr> &core, int at, std::vector<Tagged<T>> &shapes, Cut how) {
   const Box before = core.nodes.box(at);
   if (how == Cut::in_order) {
-    InOrderRule<T> rule(shapes);
-    std::vector<BuildTask<typename InOrderRule<T>::State>> tasks{
-        {at, 0, shapes.size(), -1, InOrderRule<T>::root_state()}};
+    InOrderRule<T, Tr> rule(core.traits, shapes);
+    std::vector<BuildTask<typename InOrderRule<T, Tr>::State>> tasks{
+        {at, 0, shapes.size(), -1, InOrderRule<T, Tr>::root_state()}};
     build_top_down(core, tasks, rule, nullptr);
   } else if (core.rule == BuildRule::sah) {
-    SahRule<T> rule(shapes);
-    std::vector<BuildTask<typename SahRule<T>::State>> tasks{{at, 0, shapes.size(), -1, SahRule<T>::root_state()}};
+    SahRule<T, Tr> rule(core.traits, shapes);
+    std::vector<BuildTask<typename SahRule<T, Tr>::State>> tasks{{at, 0, shapes.size(), -1, SahRule<T, Tr>::root_state()}};
     build_top_down(core, tasks, rule, nullptr);
   } else {
-    CourseRule<T> rule(fill_items(core, shapes.size(), [&](std::size_t i) -> const T & { return shapes[i].shape; }),
+    CourseRule<T, Tr> rule(core.traits, fill_items(core, shapes.size(), [&](std::size_t i) -> const T & { return shapes[i].shape; }),
                        &shapes);
-    std::vector<BuildTask<typename CourseRule<T>::State>> &tasks = core.scratch.value.tasks;
-    tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule<T>::root_state()});
+    std::vector<BuildTask<typename CourseRule<T, Tr>::State>> &tasks = core.scratch.value.tasks;
+    tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule<T, Tr>::root_state()});
     build_top_down(core, tasks, rule, nullptr);
   }
   if (core.nodes.box(at) != before && core.nodes.info(at).parent >= 0) core.refit_up(core.nodes.info(at).parent);
 }
 
 /// Rebuilds the subtree at `at` from its own shapes, taken in leaf order.
-template <class T> void rebuild(Core<T> &core, int at, Cut how) {
+template <class T, class Tr> void rebuild(Core<T, Tr> &core, int at, Cut how) {
   std::vector<Tagged<T>> shapes;
   shapes.reserve(core.nodes.info(at).count);
   walk(core.nodes, at, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
@@ -1672,15 +1738,15 @@ inline unsigned threads_for(unsigned wanted) {
 /// each node's children adjacent, each subtree contiguous; and subtrees far
 /// enough down are independent, so threads can build them at once. Last,
 /// the leaves, in pre-order, take consecutive ranges of the items.
-template <class T> void construct_by_course_rule(Core<T> &core, const std::vector<T> &elements) {
+template <class T, class Tr> void construct_by_course_rule(Core<T, Tr> &core, const std::vector<T> &elements) {
   const Layout layout(core.size, core.split_threshold, core.depth_limit);
   core.nodes.resize(layout.nodes(core.size, 0));
   core.root = 0;
   core.nodes.reset(0, 0, -1, 0);
-  CourseRule<T> rule(fill_items(core, elements.size(), [&](std::size_t i) -> const T & { return elements[i]; }),
+  CourseRule<T, Tr> rule(core.traits, fill_items(core, elements.size(), [&](std::size_t i) -> const T & { return elements[i]; }),
                      nullptr);
-  using Task = BuildTask<typename CourseRule<T>::State>;
-  std::vector<Task> tasks{{0, 0, core.size, 1, CourseRule<T>::root_state()}};
+  using Task = BuildTask<typename CourseRule<T, Tr>::State>;
+  std::vector<Task> tasks{{0, 0, core.size, 1, CourseRule<T, Tr>::root_state()}};
   const unsigned threads = threads_for(core.build_threads);
   if (threads <= 1 || core.size < kParallelMin) {
     build_top_down(core, tasks, rule, &layout);
@@ -1701,12 +1767,12 @@ template <class T> void construct_by_course_rule(Core<T> &core, const std::vecto
     fill_leaf(core, n, rule, next, next + count);
     next += count;
   });
-  std::vector<Item<T>>().swap(core.scratch.value.items);
+  std::vector<Item<T, Tr>>().swap(core.scratch.value.items);
 }
 
 /// Replaces the contents with `elements` (elements[i] gets the id i), built
 /// by the tree's rule. If it throws, the tree is left empty.
-template <class T> void construct(Core<T> &core, const std::vector<T> &elements) {
+template <class T, class Tr> void construct(Core<T, Tr> &core, const std::vector<T> &elements) {
   core.clear();
   if (elements.empty()) return;
   if (elements.size() > std::size_t(std::numeric_limits<std::uint32_t>::max()))
@@ -1761,7 +1827,7 @@ inline int choose_child(const Node &node, const Box &box) {
 constexpr double kLopsided = 0.6;
 /// Subtrees smaller than this are never rebuilt for balance: their
 /// imbalance costs less than the rebuild.
-template <class T> std::size_t min_rebuild(const Core<T> &core) {
+template <class T, class Tr> std::size_t min_rebuild(const Core<T, Tr> &core) {
   return std::max<std::size_t>(16, 3 * std::size_t(core.split_threshold + 1));
 }
 
@@ -1778,7 +1844,7 @@ template <class T> std::size_t min_rebuild(const Core<T> &core) {
 /// amortised per change per level, and every level shrinks the count by at
 /// least 1 / kLopsided: depth O(log n) for any order of changes. Returns -1
 /// when no node is lopsided.
-template <class T> int find_scapegoat(const Core<T> &core, int a, int below, bool any_child) {
+template <class T, class Tr> int find_scapegoat(const Core<T, Tr> &core, int a, int below, bool any_child) {
   const NodeStore &nodes = core.nodes;
   const std::size_t smallest = min_rebuild(core);
   int scapegoat = -1;
@@ -1801,9 +1867,9 @@ template <class T> int find_scapegoat(const Core<T> &core, int a, int below, boo
 /// (choose_child), add it to that leaf, split the leaf by the build rule
 /// when it holds more than split_threshold shapes above depth_limit, then
 /// rebuild the highest lopsided node on the path (find_scapegoat).
-template <class T> void insert_shape(Core<T> &core, const T &shape, std::uint32_t id) {
+template <class T, class Tr> void insert_shape(Core<T, Tr> &core, const T &shape, std::uint32_t id) {
   NodeStore &nodes = core.nodes;
-  const Box box = core.fat(box_of(shape));
+  const Box box = core.fat(box_of(core.traits, shape));
   ++core.size;
   if (core.root < 0) {
     core.root = core.new_node(0, -1, 0);
@@ -1846,7 +1912,7 @@ template <class T> void insert_shape(Core<T> &core, const T &shape, std::uint32_
 /// Rebuilds here split the shapes in their leaf order (Cut::in_order), so
 /// iteration order survives an erase. A rebuild of m shapes costs O(m log
 /// m) and, as for inserts, needs Omega(m) erases below the node to recur.
-template <class T> std::uint32_t erase_at(Core<T> &core, int leaf, std::size_t index) {
+template <class T, class Tr> std::uint32_t erase_at(Core<T, Tr> &core, int leaf, std::size_t index) {
   NodeStore &nodes = core.nodes;
   const std::uint32_t id = core.leaves.erase(nodes.node(leaf), index);
   if (--core.size == 0) {
@@ -1874,7 +1940,7 @@ template <class T> std::uint32_t erase_at(Core<T> &core, int leaf, std::size_t i
 }
 
 /// erase_at(), then the id is given back.
-template <class T> void erase_shape(Core<T> &core, int leaf, std::size_t index) {
+template <class T, class Tr> void erase_shape(Core<T, Tr> &core, int leaf, std::size_t index) {
   const std::uint32_t id = erase_at(core, leaf, index);
   core.leaves.free_id(id, core.size == 0);
 }
@@ -1882,9 +1948,9 @@ template <class T> void erase_shape(Core<T> &core, int leaf, std::size_t index) 
 /// The shape of `id` becomes `moved`: in place while it fits its leaf's
 /// box (refitting above when there is no margin), else erased and inserted
 /// again under the same id.
-template <class T> void update_shape(Core<T> &core, std::uint32_t id, const T &moved) {
+template <class T, class Tr> void update_shape(Core<T, Tr> &core, std::uint32_t id, const T &moved) {
   const typename LeafStore<T>::Loc at = core.leaves.locate(id);
-  if (core.nodes.box(at.leaf).contains(box_of(moved))) {
+  if (core.nodes.box(at.leaf).contains(box_of(core.traits, moved))) {
     core.leaves.shapes(core.nodes.node(at.leaf))[at.index] = moved;
     if (core.margin == 0) core.refit_up(at.leaf);
     return;
@@ -1894,7 +1960,7 @@ template <class T> void update_shape(Core<T> &core, std::uint32_t id, const T &m
 }
 
 /// Sets the margin and recomputes every box, bottom-up: O(n).
-template <class T> void set_margin(Core<T> &core, double m) {
+template <class T, class Tr> void set_margin(Core<T, Tr> &core, double m) {
   core.margin = m > 0 && m < std::numeric_limits<double>::infinity() ? m : 0;
   if (core.root < 0) return;
   std::vector<int> order;
@@ -1915,9 +1981,9 @@ template <class T> void set_margin(Core<T> &core, double m) {
 /// True iff some stored shape intersects `shape` (touching counts).
 /// Subtrees whose box misses the shape's box are never visited; the final
 /// test is T's intersect().
-template <class T> bool collides(const Core<T> &core, const T &shape) {
+template <class T, class Tr> bool collides(const Core<T, Tr> &core, const T &shape) {
   if (core.root < 0) return false;
-  const Box box = box_of(shape);
+  const Box box = box_of(core.traits, shape);
   if (!core.nodes.box(core.root).overlaps(box)) return false;
   const Probe probe = Probe::around(box);
   // Children holding the probe's centre first: a hit there is likely.
@@ -1925,7 +1991,7 @@ template <class T> bool collides(const Core<T> &core, const T &shape) {
     const Node &node = core.nodes.node(n);
     if (node.is_leaf()) {
       for (const T &s : core.leaves.shapes(node))
-        if (intersect(s, shape)) return kStop;
+        if (core.traits.intersect(s, shape)) return kStop;
       return 0;
     }
     unsigned hits, near;
@@ -1936,14 +2002,14 @@ template <class T> bool collides(const Core<T> &core, const T &shape) {
 
 /// Calls visit(shape) on each shape whose box overlaps `box`, until it
 /// returns false.
-template <class T, class V> void visit_overlapping(const Core<T> &core, const Box &box, V &&visit) {
+template <class T, class Tr, class V> void visit_overlapping(const Core<T, Tr> &core, const Box &box, V &&visit) {
   if (core.root < 0 || !core.nodes.box(core.root).overlaps(box)) return;
   const Probe probe = Probe::around(box);
   walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
     const Node &node = core.nodes.node(n);
     if (node.is_leaf()) {
       for (const T &s : core.leaves.shapes(node))
-        if (box_of(s).overlaps(box) && !visit(s)) return kStop;
+        if (box_of(core.traits, s).overlaps(box) && !visit(s)) return kStop;
       return 0;
     }
     unsigned hits, near;
@@ -1956,13 +2022,13 @@ template <class T, class V> void visit_overlapping(const Core<T> &core, const Bo
 /// stack and steps, kept between calls, and the current leaf's shapes not
 /// yet looked at. With `shape`, only shapes that intersect it are found.
 /// The stack is on the call stack for trees up to IndexStack::kInline deep.
-template <class T> class OverlapSearch {
+template <class T, class Tr> class OverlapSearch {
 public:
   /// The end of every search.
   OverlapSearch() = default;
   /// The search of `core` for `box` (and `shape`, when not null), at its
   /// first shape.
-  OverlapSearch(const Core<T> &core, const Box &box, const T *shape)
+  OverlapSearch(const Core<T, Tr> &core, const Box &box, const T *shape)
       : core_(&core), box_(box), probe_(Probe::around(box)) {
     if (shape) shape_.emplace(*shape);
     if (core.root < 0 || !core.nodes.box(core.root).overlaps(box)) return;
@@ -1977,7 +2043,7 @@ public:
     for (;;) {
       while (next_ != last_) {
         const T *s = next_++;
-        if (box_of(*s).overlaps(box_) && (!shape_ || intersect(*s, *shape_))) {
+        if (box_of(core_->traits, *s).overlaps(box_) && (!shape_ || core_->traits.intersect(*s, *shape_))) {
           at_ = s;
           return;
         }
@@ -1997,7 +2063,7 @@ public:
   }
 
 private:
-  const Core<T> *core_ = nullptr;
+  const Core<T, Tr> *core_ = nullptr;
   Box box_;
   Probe probe_ = Probe(0, 0, 0, 0, 0, 0);
   std::optional<T> shape_; // a copy: the probe may be a temporary
@@ -2008,8 +2074,8 @@ private:
 
 /// Finds a stored shape equal to `value`: its leaf and index. Only
 /// subtrees whose box holds value's box are searched.
-template <class T> bool find_equal(const Core<T> &core, const T &value, int &leaf, std::size_t &index) {
-  const Box box = box_of(value);
+template <class T, class Tr> bool find_equal(const Core<T, Tr> &core, const T &value, int &leaf, std::size_t &index) {
+  const Box box = box_of(core.traits, value);
   if (core.root < 0 || !core.nodes.box(core.root).contains(box)) return false;
   // A float child box is its exact box rounded outwards: it holds `box`
   // whenever the exact one does.
@@ -2076,8 +2142,8 @@ template <class P> struct RayMetric {
 /// are taken in order of metric.box_key, a lower bound on the keys of the
 /// shapes under a child; the search stops when the next node's bound is
 /// past metric.beyond(the k-th key so far). O(log n + k) typically.
-template <class T, class Metric>
-void best_first(const Core<T> &core, const Metric &metric, std::size_t k, std::vector<Found<T>> &found) {
+template <class T, class Tr, class Metric>
+void best_first(const Core<T, Tr> &core, const Metric &metric, std::size_t k, std::vector<Found<T>> &found) {
   found.clear();
   if (k == 0 || core.root < 0) return;
   const double inf = std::numeric_limits<double>::infinity();
@@ -2134,10 +2200,12 @@ void best_first(const Core<T> &core, const Metric &metric, std::size_t k, std::v
 /// the tree against itself: a pair of nodes is opened only when their boxes
 /// overlap, so the cost is O(n log n + k) for k pairs on well-spread
 /// scenes, against O(n^2) for a scan.
-template <class T, class F> void for_each_overlapping_pair(const Core<T> &core, F &&f) {
+template <class T, class Tr, class F> void for_each_overlapping_pair(const Core<T, Tr> &core, F &&f) {
   if (core.root < 0) return;
   const NodeStore &nodes = core.nodes;
-  auto pair = [&](const T &s, const T &u) { return box_of(s).overlaps(box_of(u)) && intersect(s, u); };
+  auto pair = [&](const T &s, const T &u) {
+    return box_of(core.traits, s).overlaps(box_of(core.traits, u)) && core.traits.intersect(s, u);
+  };
   std::vector<std::pair<int, int>> stack{{core.root, core.root}};
   while (!stack.empty()) {
     auto [a, b] = stack.back();
@@ -2187,7 +2255,7 @@ struct Summary {
 
 /// The one pass behind statistics(), sah_cost() and height(): every node in
 /// pre-order, f(n, its area in canvas units) called on each.
-template <class T, class F> Summary summarize(const Core<T> &core, F &&f) {
+template <class T, class Tr, class F> Summary summarize(const Core<T, Tr> &core, F &&f) {
   Summary s;
   for_each_preorder(core.nodes, core.root, [&](int n) {
     const Info &in = core.nodes.info(n);
@@ -2202,13 +2270,13 @@ template <class T, class F> Summary summarize(const Core<T> &core, F &&f) {
   });
   return s;
 }
-template <class T> Summary summarize(const Core<T> &core) {
+template <class T, class Tr> Summary summarize(const Core<T, Tr> &core) {
   return summarize(core, [](int, double) {});
 }
 
 /// The course's report: with `print_tree`, one line per node in pre-order,
 /// then node count, max depth and the two area sums.
-template <class T> void print_statistics(const Core<T> &core, std::ostream &ostr, bool print_tree) {
+template <class T, class Tr> void print_statistics(const Core<T, Tr> &core, std::ostream &ostr, bool print_tree) {
   std::string line;
   char buf[64];
   const Summary s = summarize(core, [&](int n, double area) {
@@ -2228,7 +2296,7 @@ template <class T> void print_statistics(const Core<T> &core, std::ostream &ostr
       line += " elements:";
       for (const T &shape : core.leaves.shapes(node)) {
         line += ' ';
-        append_box(line, box_of(shape));
+        append_box(line, box_of(core.traits, shape));
       }
     }
     line += '\n';
@@ -2250,7 +2318,7 @@ template <class T> void print_statistics(const Core<T> &core, std::ostream &ostr
 /// and 1/3 their own primary), every shape recoloured to its leaf's colour.
 /// Boxes are drawn by the shape library's BoundingBox::render; colours are
 /// made with Color(r, g, b) and given to T::setColor.
-template <class T> void render_recolor(Core<T> &core, std::ostream &ostr) {
+template <class T, class Tr> void render_recolor(Core<T, Tr> &core, std::ostream &ostr) {
   if (core.root < 0) return;
   struct Rgb {
     int r, g, b;
@@ -2282,7 +2350,7 @@ template <class T> void render_recolor(Core<T> &core, std::ostream &ostr) {
 
 /// Checks node n's own invariants (not its subtree's: validate() does
 /// that); false with *why set on the first failure.
-template <class T> bool validate_node(const Core<T> &core, int n, std::string &why) {
+template <class T, class Tr> bool validate_node(const Core<T, Tr> &core, int n, std::string &why) {
   const NodeStore &nodes = core.nodes;
   const Node &node = nodes.node(n);
   const Info &in = nodes.info(n);
@@ -2306,7 +2374,7 @@ template <class T> bool validate_node(const Core<T> &core, int n, std::string &w
     if (core.leaves.slot_size(node) != slot.count) return why = "leaf's record disagrees with its slot", false;
     if (!core.is_leaf_size(slot.count, in.depth)) return why = "leaf over split_threshold above depth_limit", false;
     const Span<const T> shapes = core.leaves.shapes(node);
-    for (const T &s : shapes) tight.extend(box_of(s));
+    for (const T &s : shapes) tight.extend(box_of(core.traits, s));
     count = shapes.size();
     const std::uint32_t *ids = core.leaves.ids(node);
     for (std::size_t i = 0; i < shapes.size(); ++i)
@@ -2332,7 +2400,7 @@ template <class T> bool validate_node(const Core<T> &core, int n, std::string &w
 
 /// Checks every invariant of the tree; false with *why (when given) naming
 /// the node and what it broke. O(n log n).
-template <class T> bool validate(const Core<T> &core, std::string *why) {
+template <class T, class Tr> bool validate(const Core<T, Tr> &core, std::string *why) {
   const NodeStore &nodes = core.nodes;
   std::string what;
   int bad = -1;
@@ -2377,18 +2445,21 @@ template <class T> bool validate(const Core<T> &core, std::string *why) {
   return true;
 }
 
-} // namespace bvh_detail
+} // namespace detail
 
 // ===========================================================================
 // 9. BVH<T>: the facade
 // ===========================================================================
 
-/// A ternary bounding volume hierarchy over shapes of type T.
+/// A ternary bounding volume hierarchy over values of type T: shapes, or
+/// anything a Traits adaptor can read (ids into the user's own arrays).
 ///
-/// What T must provide (the course's shapes provide exactly this):
-///  - copy construction and assignment;
-///  - `getBox()`, whose `getMin()` and `getMax()` have double `x` and `y`;
-///  - `getCenter()`, with double `x` and `y` (the build rule sorts by it);
+/// What T must provide: copy construction and assignment, and what Traits
+/// reads. With the default Traits, shape_traits<T> (the course's shapes
+/// provide exactly this):
+///  - `getBox()`, any box type box_traits understands (by default one with
+///    `getMin()` and `getMax()`, points with `x` and `y`);
+///  - `getCenter()`, with `x` and `y` (the build rule sorts by it);
 ///  - a free `intersect(const T&, const T&)` found by argument-dependent
 ///    lookup (collision, query by shape, all pairs).
 /// A few members need more, say so, and compile only when used:
@@ -2398,24 +2469,28 @@ template <class T> bool validate(const Core<T> &core, std::string *why) {
 /// leaves, each exactly once; every node knows the tight box of its
 /// subtree. The const members only read the tree: any number of threads may
 /// call them at once while no thread changes the tree.
-template <class T> class BVH {
-  using Box = bvh_detail::Box;
-  using Core = bvh_detail::Core<T>;
+template <class T, class Traits = shape_traits<T>> class BVH {
+  using Box = detail::Box;
+  using Core = detail::Core<T, Traits>;
+  /// Box types other than T: what query(box, f) and overlapping(box) take.
+  template <class B>
+  using if_box = typename std::enable_if<!std::is_convertible<const B &, const T &>::value, int>::type;
 
 public:
   /// `depth_limit` value meaning "no limit" (the course's default of 0).
   static constexpr int unlimited = 0;
   /// Scenes smaller than this are built without threads.
-  static constexpr std::size_t kParallelMin = bvh_detail::kParallelMin;
+  static constexpr std::size_t kParallelMin = detail::kParallelMin;
   /// How construct() and the splits and rebuilds of insert() cut a node.
-  using BuildRule = bvh_detail::BuildRule;
+  using BuildRule = detail::BuildRule;
 
   /// An empty tree. A node holding more than `split_threshold` shapes is
   /// split unless it is at depth `depth_limit` (root = depth 0;
   /// `depth_limit <= 0` means unlimited). A `split_threshold` below 1 is
   /// taken as 1 (every leaf then holds one shape, above the depth limit).
-  explicit BVH(int split_threshold = 4, int depth_limit = unlimited)
-      : core_(split_threshold < 1 ? 1 : split_threshold, depth_limit <= 0 ? unlimited : depth_limit) {}
+  explicit BVH(int split_threshold = 4, int depth_limit = unlimited, Traits traits = Traits())
+      : core_(std::move(traits), split_threshold < 1 ? 1 : split_threshold,
+              depth_limit <= 0 ? unlimited : depth_limit) {}
 
   /// Deep copy (nothing recurses: every part lives in arrays).
   BVH(const BVH &) = default;
@@ -2423,7 +2498,9 @@ public:
   BVH &operator=(const BVH &) = default;
   /// Takes `other`'s shapes and parameters; `other` is left a valid empty
   /// tree with its split_threshold and depth_limit.
-  BVH(BVH &&other) noexcept : core_(other.core_.split_threshold, other.core_.depth_limit) { take(other); }
+  BVH(BVH &&other) noexcept : core_(other.core_.traits, other.core_.split_threshold, other.core_.depth_limit) {
+    take(other);
+  }
   /// Takes `other`'s shapes and parameters; `other` is left a valid empty
   /// tree.
   BVH &operator=(BVH &&other) noexcept {
@@ -2514,7 +2591,7 @@ public:
   private:
     friend class BVH;
     iterator(const BVH *tree, int leaf, std::size_t index) : tree_(tree), leaf_(leaf), index_(index) {}
-    bvh_detail::Span<const T> shapes() const { return tree_->core_.leaves.shapes(tree_->core_.nodes.node(leaf_)); }
+    detail::Span<const T> shapes() const { return tree_->core_.leaves.shapes(tree_->core_.nodes.node(leaf_)); }
     const BVH *tree_ = nullptr;
     int leaf_ = -1; // -1: end()
     std::size_t index_ = 0;
@@ -2531,6 +2608,8 @@ public:
   std::size_t size() const { return core_.size; }
   /// True when no shape is stored.
   bool empty() const { return core_.size == 0; }
+  /// The traits (the adaptor given at construction).
+  const Traits &traits() const { return core_.traits; }
   /// The split threshold given at construction (at least 1).
   int split_threshold() const { return core_.split_threshold; }
   /// The depth limit (`unlimited`, i.e. 0, for none).
@@ -2556,22 +2635,22 @@ public:
   /// kParallelMin shapes are always built by the caller alone.
   void set_build_threads(unsigned threads) { core_.build_threads = threads; }
   /// The threads construct() uses for large scenes (at least 1).
-  unsigned build_threads() const { return bvh_detail::threads_for(core_.build_threads); }
+  unsigned build_threads() const { return detail::threads_for(core_.build_threads); }
 
   /// Removes every shape; every handle becomes invalid.
   void clear() { core_.clear(); }
 
   /// Replaces the contents with `elements`, built top-down by the build
-  /// rule (the course's: see bvh_detail::CourseRule); elements[i] gets the
+  /// rule (the course's: see detail::CourseRule); elements[i] gets the
   /// handle id i. If it throws, the tree is left empty.
-  void construct(const std::vector<T> &elements) { bvh_detail::construct(core_, elements); }
+  void construct(const std::vector<T> &elements) { detail::construct(core_, elements); }
 
-  /// Adds one shape (the insertion strategy: bvh_detail::insert_shape) and
+  /// Adds one shape (the insertion strategy: detail::insert_shape) and
   /// returns its handle.
   handle insert(const T &shape) {
     const std::uint32_t id = core_.leaves.new_id();
     try {
-      bvh_detail::insert_shape(core_, shape, id);
+      detail::insert_shape(core_, shape, id);
     } catch (...) {
       core_.leaves.free_id(id, core_.size == 0);
       throw;
@@ -2598,13 +2677,13 @@ public:
   void erase(handle h) {
     BVH_ASSERT(contains(h), "erase() with a handle that names no stored shape");
     const auto at = core_.leaves.locate(h.id);
-    bvh_detail::erase_shape(core_, at.leaf, at.index);
+    detail::erase_shape(core_, at.leaf, at.index);
   }
   /// Removes the shape at `pos` and returns the iterator to the shape that
   /// followed it (end() after the last). Every other iterator is
   /// invalidated, but the remaining shapes keep their iteration order, so
   /// erasing while iterating (`it = tree.erase(it)`) visits each shape once.
-  /// O(log n) amortized (bvh_detail::erase_at has the repairs).
+  /// O(log n) amortized (detail::erase_at has the repairs).
   iterator erase(iterator pos) {
     BVH_ASSERT(pos.tree_ == this, "erase() with an iterator of another tree (or a singular one)");
     BVH_ASSERT(pos.leaf_ >= 0, "erase(end())");
@@ -2613,7 +2692,7 @@ public:
                    core_.nodes.node(pos.leaf_).leaf().has_slot() && pos.index_ < pos.shapes().size(),
                "erase() with an invalidated iterator");
     const std::size_t rank = rank_of(pos.leaf_, pos.index_);
-    bvh_detail::erase_shape(core_, pos.leaf_, pos.index_);
+    detail::erase_shape(core_, pos.leaf_, pos.index_);
     return iterator_at(rank);
   }
   /// Removes every stored shape equal to `value` and returns how many there
@@ -2624,7 +2703,7 @@ public:
     std::size_t removed = 0;
     int leaf;
     std::size_t index;
-    for (; bvh_detail::find_equal(core_, value, leaf, index); ++removed) bvh_detail::erase_shape(core_, leaf, index);
+    for (; detail::find_equal(core_, value, leaf, index); ++removed) detail::erase_shape(core_, leaf, index);
     return removed;
   }
 
@@ -2638,7 +2717,7 @@ public:
   /// shapes, so that small moves stay inside them.
   void update(handle h, const T &moved) {
     BVH_ASSERT(contains(h), "update() with a handle that names no stored shape");
-    bvh_detail::update_shape(core_, h.id, moved);
+    detail::update_shape(core_, h.id, moved);
   }
 
   /// Leaves' boxes are their shapes' box grown by `m` on every side (m < 0
@@ -2646,7 +2725,7 @@ public:
   /// Box2D's "fat" boxes, which let update() absorb moves smaller than m
   /// without touching the tree, at the cost of looser boxes for queries
   /// (and larger areas in statistics()). Every box is recomputed: O(n).
-  void set_margin(double m) { bvh_detail::set_margin(core_, m); }
+  void set_margin(double m) { detail::set_margin(core_, m); }
   /// The margin of leaves' boxes (0 unless set_margin() said otherwise).
   double margin() const { return core_.margin; }
 
@@ -2654,19 +2733,21 @@ public:
   /// Subtrees whose box misses the shape's box are never visited; the final
   /// test is T's intersect() (for this project's shapes, intersect.h's
   /// exact predicate; on the course's server, the course's own).
-  bool collision(const T &shape) const { return bvh_detail::collides(core_, shape); }
+  bool collision(const T &shape) const { return detail::collides(core_, shape); }
 
-  /// Calls f(shape) for every stored shape whose box overlaps `box`
-  /// (touching counts). If f returns bool, returning false stops the search.
-  template <class F> void query(const BoundingBox &box, F &&f) const {
-    bvh_detail::visit_overlapping(core_, Box::of(box), [&](const T &s) { return bvh_detail::keep_going(f, s); });
+  /// Calls f(shape) for every stored shape whose box overlaps `box`, of
+  /// any type box_traits understands (touching counts). If f returns bool,
+  /// returning false stops the search.
+  template <class B, class F, if_box<B> = 0> void query(const B &box, F &&f) const {
+    detail::visit_overlapping(core_, Box::from(box), [&](const T &s) { return detail::keep_going(f, s); });
   }
   /// Calls f(shape) for every stored shape that intersects `shape` (by T's
   /// intersect(): exact, touching counts, for this project's shapes). If f
   /// returns bool, returning false stops the search.
   template <class F> void query(const T &shape, F &&f) const {
-    bvh_detail::visit_overlapping(core_, bvh_detail::box_of(shape),
-                                  [&](const T &s) { return !intersect(s, shape) || bvh_detail::keep_going(f, s); });
+    detail::visit_overlapping(core_, detail::box_of(core_.traits, shape), [&](const T &s) {
+      return !core_.traits.intersect(s, shape) || detail::keep_going(f, s);
+    });
   }
   /// Copies every stored shape that intersects `shape` to `out` (an output
   /// iterator, e.g. std::back_inserter(vector)) and returns its end.
@@ -2711,7 +2792,7 @@ public:
   private:
     friend class BVH;
     overlap_iterator(const Core &core, const Box &box, const T *shape) : search_(core, box, shape) {}
-    bvh_detail::OverlapSearch<T> search_;
+    detail::OverlapSearch<T, Traits> search_;
   };
 
   /// What overlapping() returns: a range for range-for.
@@ -2729,13 +2810,14 @@ public:
   /// The shapes query(shape, f) would pass to f, as a lazy range:
   /// `for (const T &s : tree.overlapping(shape))`, stoppable by break. The
   /// search starts at once and each step runs on ++; nothing is allocated
-  /// unless the tree is deeper than bvh_detail::IndexStack::kInline levels.
+  /// unless the tree is deeper than detail::IndexStack::kInline levels.
   overlap_range overlapping(const T &shape) const {
-    return overlap_range(overlap_iterator(core_, bvh_detail::box_of(shape), &shape));
+    return overlap_range(overlap_iterator(core_, detail::box_of(core_.traits, shape), &shape));
   }
-  /// The shapes query(box, f) would pass to f (boxes that meet `box`).
-  overlap_range overlapping(const BoundingBox &box) const {
-    return overlap_range(overlap_iterator(core_, Box::of(box), nullptr));
+  /// The shapes query(box, f) would pass to f (boxes that meet `box`, of
+  /// any type box_traits understands).
+  template <class B, if_box<B> = 0> overlap_range overlapping(const B &box) const {
+    return overlap_range(overlap_iterator(core_, Box::from(box), nullptr));
   }
 
   /// A stored shape at the least distance from `p` (by a free
@@ -2743,9 +2825,9 @@ public:
   /// p is inside or on it; needed only when this is used), or nullptr when
   /// the tree is empty; `*dist` gets the distance (+inf when empty). Among
   /// equally near shapes, the one of the smallest handle id. O(log n)
-  /// typically (bvh_detail::best_first).
+  /// typically (detail::best_first).
   const T *nearest(const Point &p, double *dist = nullptr) const {
-    return best_one(bvh_detail::PointMetric<Point>{p}, dist);
+    return best_one(detail::PointMetric<Point>{p}, dist);
   }
 
   /// One answer of nearest(p, k, out).
@@ -2761,8 +2843,8 @@ public:
   /// answer is one definite list. Returns out's end. O(log n + k)
   /// typically.
   template <class Out> Out nearest(const Point &p, std::size_t k, Out out) const {
-    std::vector<bvh_detail::Found<T>> found;
-    bvh_detail::best_first(core_, bvh_detail::PointMetric<Point>{p}, k, found);
+    std::vector<detail::Found<T>> found;
+    detail::best_first(core_, detail::PointMetric<Point>{p}, k, found);
     for (const auto &f : found) *out++ = neighbor{f.shape, f.key, handle{f.id}};
     return out;
   }
@@ -2774,14 +2856,14 @@ public:
   /// id. Needs a free `ray_hit(origin, direction, shape)` (distance.h), only
   /// when used.
   const T *first_hit(const Point &origin, const Point &direction, double *t = nullptr) const {
-    return best_one(bvh_detail::RayMetric<Point>{origin, direction}, t);
+    return best_one(detail::RayMetric<Point>{origin, direction}, t);
   }
 
   /// Calls f(a, b) once for every unordered pair of stored shapes that
   /// intersect (by T's intersect(); exact, touching counts, for this
   /// project's shapes); if f returns bool, false stops. O(n log n + pairs)
   /// on well-spread scenes.
-  template <class F> void for_each_overlapping_pair(F &&f) const { bvh_detail::for_each_overlapping_pair(core_, f); }
+  template <class F> void for_each_overlapping_pair(F &&f) const { detail::for_each_overlapping_pair(core_, f); }
   /// The number of unordered pairs of stored shapes that intersect.
   std::size_t count_overlapping_pairs() const {
     std::size_t k = 0;
@@ -2794,24 +2876,24 @@ public:
   /// surface area heuristic (areas in units of the 1000x1000 canvas).
   void statistics(bool print_tree) const { statistics(std::cout, print_tree); }
   /// The same report, to any stream.
-  void statistics(std::ostream &ostr, bool print_tree) const { bvh_detail::print_statistics(core_, ostr, print_tree); }
+  void statistics(std::ostream &ostr, bool print_tree) const { detail::print_statistics(core_, ostr, print_tree); }
   /// The surface area heuristic cost that statistics() prints, unrounded:
   /// the inner nodes' box areas plus each leaf's box area times its shape
   /// count, in units of the 1000 x 1000 canvas (0 for an empty tree).
   double sah_cost() const {
-    const bvh_detail::Summary s = bvh_detail::summarize(core_);
+    const detail::Summary s = detail::summarize(core_);
     return s.inner_area + s.leaf_area;
   }
   /// Depth of the deepest node (0 for a single leaf or an empty tree).
-  int height() const { return bvh_detail::summarize(core_).max_depth; }
+  int height() const { return detail::summarize(core_).max_depth; }
 
   /// Draws every node's box translucently and recolours every shape to the
-  /// colour of its leaf (the course's picture: bvh_detail::render_recolor).
-  void render_recolor(std::ostream &ostr) { bvh_detail::render_recolor(core_, ostr); }
+  /// colour of its leaf (the course's picture: detail::render_recolor).
+  void render_recolor(std::ostream &ostr) { detail::render_recolor(core_, ostr); }
 
   /// Checks every invariant; on failure returns false and, when `why` is
   /// given, says which node broke what. Meant for tests: O(n log n).
-  bool validate(std::string *why = nullptr) const { return bvh_detail::validate(core_, why); }
+  bool validate(std::string *why = nullptr) const { return detail::validate(core_, why); }
 
 private:
   /// The move: `other`'s state for ours, then `other` emptied.
@@ -2822,8 +2904,8 @@ private:
 
   /// best_first() for one answer: its shape, with its key in *key.
   template <class Metric> const T *best_one(const Metric &metric, double *key) const {
-    std::vector<bvh_detail::Found<T>> found;
-    bvh_detail::best_first(core_, metric, 1, found);
+    std::vector<detail::Found<T>> found;
+    detail::best_first(core_, metric, 1, found);
     if (key) *key = found.empty() ? std::numeric_limits<double>::infinity() : found[0].key;
     return found.empty() ? nullptr : found[0].shape;
   }
@@ -2841,7 +2923,7 @@ private:
     if (rank >= core_.size) return end();
     int n = core_.root;
     while (!core_.nodes.node(n).is_leaf()) {
-      const bvh_detail::Node &node = core_.nodes.node(n);
+      const detail::Node &node = core_.nodes.node(n);
       int c = 0;
       while (rank >= core_.nodes.info(node.child(c)).count) rank -= core_.nodes.info(node.child(c)).count, ++c;
       n = node.child(c);
@@ -2851,5 +2933,14 @@ private:
 
   Core core_;
 };
+
+} // namespace bvh
+
+// The course's unqualified name: BVH<Disk> and so on, as its main.cpp and
+// server use them. Define BVH_NO_GLOBAL_NAMES before including bvh.h (and
+// shapes.h) to keep every name inside namespace bvh.
+#ifndef BVH_NO_GLOBAL_NAMES
+using bvh::BVH;
+#endif
 
 #endif // BVH_BVH_H

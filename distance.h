@@ -23,7 +23,9 @@
 
 #include "intersect.h"
 
-namespace bvh_distance_detail {
+namespace bvh {
+
+namespace distance_detail {
 
 inline double cross(double ax, double ay, double bx, double by) { return ax * by - ay * bx; }
 
@@ -55,7 +57,7 @@ inline double ray_segment(const Point &o, const Point &dir, const Point &a, cons
   return t >= 0 && s >= 0 && s <= 1 ? t : inf;
 }
 
-} // namespace bvh_distance_detail
+} // namespace distance_detail
 
 /// Distance from `p` to the disk `d` (0 when p is inside or on it).
 inline double distance(const Point &p, const Disk &d) {
@@ -63,7 +65,7 @@ inline double distance(const Point &p, const Disk &d) {
   return std::max(0.0, std::hypot(p.x - d.getCenter().x, p.y - d.getCenter().y) - d.getRadius());
 }
 
-namespace bvh_distance_detail {
+namespace distance_detail {
 template <class P> double polygon_distance(const Point &p, const P &poly) {
   if (intersect(Disk(p, 0, Color(0, 0, 0)), poly)) return 0;
   const int n = poly.numPoints();
@@ -79,12 +81,12 @@ template <class P> double polygon_ray(const Point &origin, const Point &dir, con
     best = std::min(best, ray_segment(origin, dir, poly.getPoint(i), poly.getPoint((i + 1) % n)));
   return best;
 }
-} // namespace bvh_distance_detail
+} // namespace distance_detail
 
 /// Distance from `p` to the triangle `t` (0 inside or on it).
-inline double distance(const Point &p, const Triangle &t) { return bvh_distance_detail::polygon_distance(p, t); }
+inline double distance(const Point &p, const Triangle &t) { return distance_detail::polygon_distance(p, t); }
 /// Distance from `p` to the quad `q` (0 inside or on it).
-inline double distance(const Point &p, const Quad &q) { return bvh_distance_detail::polygon_distance(p, q); }
+inline double distance(const Point &p, const Quad &q) { return distance_detail::polygon_distance(p, q); }
 
 /// The ray origin + t * dir (t >= 0) first meets the disk at the returned t;
 /// 0 when the origin is inside or on it, +inf when it misses. A zero `dir`
@@ -104,11 +106,11 @@ inline double ray_hit(const Point &origin, const Point &dir, const Disk &d) {
 
 /// The same for a triangle: the nearest crossing of an edge.
 inline double ray_hit(const Point &origin, const Point &dir, const Triangle &t) {
-  return bvh_distance_detail::polygon_ray(origin, dir, t);
+  return distance_detail::polygon_ray(origin, dir, t);
 }
 /// The same for a quad (convex or not): the nearest crossing of an edge.
 inline double ray_hit(const Point &origin, const Point &dir, const Quad &q) {
-  return bvh_distance_detail::polygon_ray(origin, dir, q);
+  return distance_detail::polygon_ray(origin, dir, q);
 }
 
 /// Distance from `p` to the shape held, whichever kind it is.
@@ -119,5 +121,12 @@ inline double distance(const Point &p, const Shape &s) {
 inline double ray_hit(const Point &origin, const Point &dir, const Shape &s) {
   return s.visit([&](const auto &shape) { return ray_hit(origin, dir, shape); });
 }
+
+} // namespace bvh
+
+#ifndef BVH_NO_GLOBAL_NAMES
+using bvh::distance;
+using bvh::ray_hit;
+#endif
 
 #endif // BVH_DISTANCE_H

@@ -7,7 +7,7 @@
 //   Triangle t(Point(0, 0), Point(10, 0), Point(0, 10));
 //   Disk d(Point(13, -4), 5);                   // 3-4-5: touches vertex (10, 0)
 //   bool hit = intersect(t, d);                 // true; always == intersect(d, t)
-//   int turn = bvh_exact::orient2d(a, b, c);    // sign of cross(b - a, c - a)
+//   int turn = bvh::exact::orient2d(a, b, c);   // sign of cross(b - a, c - a)
 //
 // Semantics. Every shape is a closed set. A disk is the points at distance
 // <= radius from its centre (radius 0: a point). A polygon is its boundary
@@ -56,7 +56,8 @@
 static_assert(std::numeric_limits<double>::is_iec559 && FLT_EVAL_METHOD == 0,
               "intersect.h needs IEEE doubles evaluated without extended precision");
 
-namespace bvh_exact {
+namespace bvh {
+namespace exact {
 
 namespace detail {
 
@@ -368,33 +369,33 @@ template <int N, int M> bool polygons_meet(const Polygon<N> &P, const Polygon<M>
 }
 
 } // namespace detail
-} // namespace bvh_exact
+} // namespace exact
 
 /// True when the closed disks meet (tangent disks do).
 inline bool intersect(const Disk &a, const Disk &b) {
-  return bvh_exact::detail::disk_gap(a.getCenter(), b.getCenter(), a.getRadius(), b.getRadius()) >= 0;
+  return exact::detail::disk_gap(a.getCenter(), b.getCenter(), a.getRadius(), b.getRadius()) >= 0;
 }
 
 /// True when the closed triangles meet (a shared vertex or edge point counts).
-inline bool intersect(const Triangle &a, const Triangle &b) { return bvh_exact::detail::polygons_meet(a, b); }
+inline bool intersect(const Triangle &a, const Triangle &b) { return exact::detail::polygons_meet(a, b); }
 
 /// True when the closed quads meet (simple, possibly non-convex; see the top).
-inline bool intersect(const Quad &a, const Quad &b) { return bvh_exact::detail::polygons_meet(a, b); }
+inline bool intersect(const Quad &a, const Quad &b) { return exact::detail::polygons_meet(a, b); }
 
 /// True when the closed disk and triangle meet.
-inline bool intersect(const Disk &d, const Triangle &t) { return bvh_exact::detail::disk_meets_polygon(d, t); }
+inline bool intersect(const Disk &d, const Triangle &t) { return exact::detail::disk_meets_polygon(d, t); }
 
 /// Same as intersect(d, t).
 inline bool intersect(const Triangle &t, const Disk &d) { return intersect(d, t); }
 
 /// True when the closed disk and quad meet.
-inline bool intersect(const Disk &d, const Quad &q) { return bvh_exact::detail::disk_meets_polygon(d, q); }
+inline bool intersect(const Disk &d, const Quad &q) { return exact::detail::disk_meets_polygon(d, q); }
 
 /// Same as intersect(d, q).
 inline bool intersect(const Quad &q, const Disk &d) { return intersect(d, q); }
 
 /// True when the closed triangle and quad meet.
-inline bool intersect(const Triangle &t, const Quad &q) { return bvh_exact::detail::polygons_meet(t, q); }
+inline bool intersect(const Triangle &t, const Quad &q) { return exact::detail::polygons_meet(t, q); }
 
 /// Same as intersect(t, q).
 inline bool intersect(const Quad &q, const Triangle &t) { return intersect(t, q); }
@@ -403,6 +404,12 @@ inline bool intersect(const Quad &q, const Triangle &t) { return intersect(t, q)
 inline bool intersect(const Shape &a, const Shape &b) {
   return a.visit([&](const auto &x) { return b.visit([&](const auto &y) { return intersect(x, y); }); });
 }
+
+} // namespace bvh
+
+#ifndef BVH_NO_GLOBAL_NAMES
+using bvh::intersect;
+#endif
 
 #undef BVH_EXACT_COLD
 

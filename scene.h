@@ -35,6 +35,8 @@
 
 namespace bvh_scene {
 
+using namespace bvh; // (the shapes, BVH, intersect: with or without BVH_NO_GLOBAL_NAMES)
+
 // Reading scenes. The course's loader reads every number into a float and
 // widens it to double; the printed boxes depend on that, so we do the same.
 

@@ -23,6 +23,11 @@
 #include <utility>
 #include <variant>
 
+// Everything here is in namespace bvh; the course's unqualified names
+// (Point, Disk, ...) come from the using-declarations at the end, unless
+// BVH_NO_GLOBAL_NAMES is defined.
+namespace bvh {
+
 /// A point (or vector) in the plane.
 class Point {
 public:
@@ -323,6 +328,21 @@ public:
 private:
   std::variant<Disk, Triangle, Quad> shape_;
 };
+
+} // namespace bvh
+
+#ifndef BVH_NO_GLOBAL_NAMES
+// The course's names, unqualified, as its handout and main.cpp use them.
+using bvh::BoundingBox;
+using bvh::Color;
+using bvh::Disk;
+using bvh::distance;
+using bvh::Point;
+using bvh::Polygon;
+using bvh::Quad;
+using bvh::Shape;
+using bvh::Triangle;
+#endif
 
 // This project's exact predicates and distances come with its shapes, so
 // that code including only "bvh.h" (which includes only "shapes.h", as the

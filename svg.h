@@ -23,6 +23,8 @@
 #include "bvh.h"
 #include "shapes.h"
 
+namespace bvh {
+
 /// Opening of the document: XML declaration and the <svg> element. The
 /// viewBox and the max-width/max-height style let a browser shrink the
 /// 1000 x 1000 picture to fit a smaller window (tests/browser_check.py
@@ -69,8 +71,8 @@ inline void render_end(std::ostream &ostr) {
 /// boxes are drawn and shapes recoloured by leaf (the tree's colours change).
 /// Returns false and sets `*error` when the file cannot be written; the
 /// destination is then left as it was.
-template <class T>
-bool write_svg(const std::string &path, BVH<T> &tree, bool visualize, std::string *error = nullptr) {
+template <class T, class Tr>
+bool write_svg(const std::string &path, BVH<T, Tr> &tree, bool visualize, std::string *error = nullptr) {
   const std::string temp = path + ".partial";
   {
     std::ofstream ostr(temp, std::ios::binary | std::ios::trunc);
@@ -97,5 +99,14 @@ bool write_svg(const std::string &path, BVH<T> &tree, bool visualize, std::strin
   }
   return true;
 }
+
+} // namespace bvh
+
+#ifndef BVH_NO_GLOBAL_NAMES
+using bvh::render_end;
+using bvh::render_shape;
+using bvh::render_start;
+using bvh::write_svg;
+#endif
 
 #endif // BVH_SVG_H

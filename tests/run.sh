@@ -143,6 +143,7 @@ unit_tests() {
   run_suite test_dynamic "$BUILD/test_dynamic"
   run_suite test_moving "$BUILD/test_moving"
   run_suite test_parse "$BUILD/test_parse"
+  run_suite test_names "$BUILD/test_names"
   # collision() without SSE2 (BVH_NO_SIMD): the scalar fallback against the same brute force.
   BVH_TEST_SCALE=0.3 run_suite test_bvh_scalar "$BUILD/test_bvh_scalar"
 }
@@ -155,6 +156,7 @@ sanitizers() {
   BVH_TEST_SCALE=0.5 run_suite test_dynamic_sanitized "$BUILD/test_dynamic_san"
   BVH_TEST_SCALE=0.5 run_suite test_moving_sanitized "$BUILD/test_moving_san"
   BVH_TEST_SCALE=0.1 run_suite test_parse_sanitized "$BUILD/test_parse_san"
+  run_suite test_names_sanitized "$BUILD/test_names_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
     '$BUILD/bvh_san.out' -i inputs/overlap_1000.triangles -o '$OUT/san.html' --depth_limit 8 --incremental \
@@ -179,6 +181,7 @@ portable() {
     run_suite test_moving_libcxx "$BUILD/test_moving_libcxx"
     run_suite test_parse_libcxx "$BUILD/test_parse_libcxx"
     run_suite test_threads_libcxx "$BUILD/test_threads_libcxx"
+    run_suite test_names_libcxx "$BUILD/test_names_libcxx"
   else
     skip "test_*_libcxx" "clang++ with libc++ is not installed (apt-get install clang libc++-dev libc++abi-dev)"
   fi

@@ -153,7 +153,7 @@ TEST(bulk_build_equals_literal_course_rule_triangles) { check_build_against_refe
 TEST(bulk_build_equals_literal_course_rule_quads) { check_build_against_reference<Quad>(base_seed() + 2); }
 TEST(bulk_build_equals_literal_course_rule_mixed) { check_build_against_reference<Shape>(base_seed() + 3); }
 
-// construct() lays nodes out from counts alone (bvh_detail::Layout) and
+// construct() lays nodes out from counts alone (bvh::detail::Layout) and
 // builds subtrees on several threads for scenes of kParallelMin shapes or
 // more: whatever the thread count, the tree must be the one-thread tree, and
 // every node laid out must be used (validate() counts them).
@@ -483,9 +483,9 @@ TEST(round_out_equals_float_down_and_float_up) {
   for (std::size_t i = 0; i < v.size(); ++i) {
     const double a = v[i], b = v[(i * 7 + 3) % v.size()], c = v[(i * 13 + 5) % v.size()], d = v[(i * 17 + 1) % v.size()];
     float got[4];
-    bvh_detail::round_out(bvh_detail::Box{a, b, c, d}, got);
-    const float want[4] = {bvh_detail::float_down(a), bvh_detail::float_down(b), bvh_detail::float_up(c),
-                           bvh_detail::float_up(d)};
+    bvh::detail::round_out(bvh::detail::Box{a, b, c, d}, got);
+    const float want[4] = {bvh::detail::float_down(a), bvh::detail::float_down(b), bvh::detail::float_up(c),
+                           bvh::detail::float_up(d)};
     if (std::memcmp(got, want, sizeof got) != 0) ++wrong;
   }
   CHECK_EQ(wrong, 0);
@@ -497,7 +497,7 @@ TEST(block_vector_behaves_like_a_vector) {
   const unsigned seed = base_seed() + 7;
   note("seed " + std::to_string(seed));
   std::mt19937 rng(seed);
-  bvh_detail::BlockVector<std::vector<int>> blocks;
+  bvh::detail::BlockVector<std::vector<int>> blocks;
   std::vector<std::vector<int>> model;
   for (int step = 0; step < scaled(20000); ++step) {
     const unsigned op = rng() % 10;
@@ -520,11 +520,11 @@ TEST(block_vector_behaves_like_a_vector) {
   bool same = true;
   for (std::size_t i = 0; i < model.size(); ++i) same = same && blocks[i] == model[i];
   CHECK(same);
-  bvh_detail::BlockVector<std::vector<int>> copy = blocks;
+  bvh::detail::BlockVector<std::vector<int>> copy = blocks;
   if (!model.empty()) copy[0].push_back(-1); // deep: the original keeps its own
   CHECK(model.empty() || blocks[0] == model[0]);
   copy = blocks;
-  const bvh_detail::BlockVector<std::vector<int>> moved = std::move(copy);
+  const bvh::detail::BlockVector<std::vector<int>> moved = std::move(copy);
   CHECK(copy.empty());
   CHECK_EQ(moved.size(), model.size());
   same = true;

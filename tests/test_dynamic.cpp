@@ -167,7 +167,7 @@ TEST(leaf_pool_matches_a_model) {
   note("BVH_SEED=" + std::to_string(seed));
   std::mt19937 rng(seed);
   {
-    using Pool = bvh_detail::LeafPool<Tracked>;
+    using Pool = bvh::detail::LeafPool<Tracked>;
     Pool pool;
     std::vector<Pool::Slot> slots;
     std::vector<std::vector<int>> model;

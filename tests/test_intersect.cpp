@@ -875,7 +875,7 @@ int naive_orient(const Point &a, const Point &b, const Point &c) {
 /// orient2d(a, b, c) and its five permutations against the reference.
 /// Returns whether the naive double formula got the sign wrong.
 bool check_orient(const Point &a, const Point &b, const Point &c, int k) {
-  using bvh_exact::orient2d;
+  using bvh::exact::orient2d;
   const int s = ref_orient(a, b, c, k);
   CHECK_EQ(orient2d(a, b, c), s);
   CHECK_EQ(orient2d(b, c, a), s);
@@ -899,7 +899,7 @@ TEST(orient2d_near_collinear_is_exact) {
     for (int j = 0; j < 256; ++j) {
       const Point p(0.5 + i * u, 0.5 + j * u);
       wrong_naive += check_orient(p, q, r, 53);
-      CHECK_EQ(bvh_exact::orient2d(p, q, r), (j > i) - (j < i));
+      CHECK_EQ(bvh::exact::orient2d(p, q, r), (j > i) - (j < i));
     }
   std::cout << "  naive double orientation wrong on " << wrong_naive << " of 65536 grid points" << std::endl;
   CHECK(wrong_naive > 0); // the grid really is beyond the naive formula
@@ -931,7 +931,7 @@ IP big_point(const Point &p, int k) { return {to_int(p.x, k), to_int(p.y, k)}; }
 TEST(filtered_predicates_match_reference_near_zero) {
   // Each helper of intersect.h on inputs that put its value within rounding
   // of zero: right angles, tangencies. Full doubles in [8, 56) scale by 2^53.
-  using namespace bvh_exact::detail;
+  using namespace bvh::exact::detail;
   const unsigned long long seed = base_seed() + 3;
   note(seed_note("filtered_predicates"));
   Gen g(seed);
@@ -969,7 +969,7 @@ TEST(filtered_predicates_match_reference_near_zero) {
 
 TEST(expansion_arithmetic_is_exact) {
   // Values whose exact result needs more than one double.
-  using namespace bvh_exact::detail;
+  using namespace bvh::exact::detail;
   const double big = std::ldexp(1.0, 60);
   CHECK_EQ((exact_sum(big, 1.0) - exact(big)).sign(), 1);
   CHECK_EQ((exact_sum(big, -1.0) - exact(big)).sign(), -1);

@@ -1,6 +1,6 @@
 // tests/test_threads.cpp — construct() on several threads. A scene of
 // kParallelMin shapes or more is laid out from counts alone
-// (bvh_detail::Layout) and its subtrees built at once: whatever the number
+// (bvh::detail::Layout) and its subtrees built at once: whatever the number
 // of threads, the tree must be the one-thread tree, and every node laid out
 // must be used (validate() counts them). make test also runs this file
 // built with -fsanitize=thread, where a data race fails it.
