@@ -32,7 +32,7 @@ TSAN_TESTS := $(BUILD)/test_threads_tsan
 # examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
-.PHONY: all test test-build test-build-gcc test-build-libcxx demo bench clean fuzz bench-dynamic bench-builders bench-moving
+.PHONY: all test test-build test-build-gcc test-build-libcxx demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions
 
 all: bvh.out
 
@@ -141,7 +141,7 @@ $(BUILD)/bench: bench/bench.cpp bench/peers.h $(HEADERS) $(BUILD)/bench-peers | 
 # ---- make bench-dynamic (bench/dynamic.cpp): all-pairs collision against Boost's
 # and Box2D's ways of doing it, and SAH drift under insert/erase churn; the
 # table goes to stdout and bench/results_dynamic.txt. QUICK=1 for a small run.
-$(BUILD)/bench_dynamic: bench/dynamic.cpp $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
+$(BUILD)/bench_dynamic: bench/dynamic.cpp bench/random_disks.h $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
 	@if [ "$$(cat $(BUILD)/bench-peers)" = box2d ]; then lib=-lbox2d; def=-DBENCH_HAVE_BOX2D_LIB; else lib=; def=; fi; \
 	echo "$(CXX) $(BENCH_CXXFLAGS) $$def bench/dynamic.cpp -o $@ $$lib"; \
 	$(CXX) $(BENCH_CXXFLAGS) $$def bench/dynamic.cpp -o $@ $$lib
@@ -179,3 +179,13 @@ bench-moving: $(BUILD)/bench_moving
 	echo "$(BUILD)/bench_moving $(BENCH_ARGS) | tee $$out"; \
 	{ $(BUILD)/bench_moving $(BENCH_ARGS); echo $$? > $(BUILD)/bench_moving.rc; } | tee $$out; \
 	exit $$(cat $(BUILD)/bench_moving.rc)
+
+# ---- make bench-instructions (bench/instructions.sh): callgrind instruction counts of
+# W1, W2, W3 (bench.cpp, ours) and all pairs and erase churn (bench/instructions.cpp),
+# one run each: the steady measure for comparing two versions of bvh.h on a shared
+# machine. Table to stdout and bench/results_instructions.txt.
+$(BUILD)/instructions: bench/instructions.cpp bench/peers.h bench/random_disks.h $(HEADERS) | $(BUILD)
+	$(CXX) $(BENCH_CXXFLAGS) -pedantic bench/instructions.cpp -o $@
+
+bench-instructions: bvh.out $(BUILD)/bench $(BUILD)/instructions
+	bash bench/instructions.sh $(BUILD) | tee bench/results_instructions.txt

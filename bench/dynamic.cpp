@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "../bvh.h"
+#include "random_disks.h"
 
 #if !defined(BENCH_NO_BOOST) && __has_include(<boost/geometry.hpp>)
 #define HAVE_BOOST 1
@@ -43,18 +44,6 @@ namespace {
 
 double now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-std::vector<Disk> disks(std::size_t n, double rlo, double rhi, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> xy(0, 1000), r(rlo, rhi);
-  std::vector<Disk> v;
-  v.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const double x = xy(rng), y = xy(rng);
-    v.emplace_back(Point(x, y), r(rng), Color(0, 0, 0));
-  }
-  return v;
 }
 
 /// Median seconds of `runs` calls of f(), which returns the pair count.
@@ -176,7 +165,7 @@ void churn(std::size_t n, std::size_t ops, std::uint64_t seed) {
   std::printf("%12s %10s %10s %8s %8s %8s %12s\n", "operations", "SAH", "bulk SAH", "ratio", "height",
               "bulk h", "us/erase");
   std::mt19937_64 rng(seed);
-  std::vector<Disk> live = disks(n, 0.5, 2, seed);
+  std::vector<Disk> live = random_disks(n, 0.5, 2, seed);
   BVH<Disk> tree(4, BVH<Disk>::unlimited);
   for (const Disk &d : live) tree.insert(d);
   std::size_t done = 0;
@@ -188,7 +177,7 @@ void churn(std::size_t n, std::size_t ops, std::uint64_t seed) {
     std::printf("%12zu %10.3f %10.3f %8.3f %8d %8d %12.3f\n", done, sah(tree), sah(bulk), sah(tree) / sah(bulk),
                 tree.height(), bulk.height(), done ? 1e6 * erase_seconds / double(done) : 0.0);
     if (checkpoint == 5) break;
-    const std::vector<Disk> fresh = disks(step, 0.5, 2, rng());
+    const std::vector<Disk> fresh = random_disks(step, 0.5, 2, rng());
     for (std::size_t i = 0; i < step; ++i) {
       const std::size_t at = std::size_t(rng() % live.size());
       const double start = now();
@@ -217,9 +206,9 @@ int main(int argc, char **argv) {
   std::printf("bvh dynamic benchmark: median of %d runs in one process; g++ -O2\n\n", runs);
   std::printf("%-34s %-30s %9s %7s %10s\n", "all pairs", "method", "median s", "x ours", "pairs");
   std::printf("%s\n", std::string(94, '-').c_str());
-  pairs_row("10k disks r2-7.5", disks(10000, 2, 7.5, 1), runs);
-  pairs_row("100k disks r2-7.5", disks(100000, 2, 7.5, 2), runs);
-  if (!quick) pairs_row("1M disks r0.2-0.6", disks(1000000, 0.2, 0.6, 3), 3);
+  pairs_row("10k disks r2-7.5", random_disks(10000, 2, 7.5, 1), runs);
+  pairs_row("100k disks r2-7.5", random_disks(100000, 2, 7.5, 2), runs);
+  if (!quick) pairs_row("1M disks r0.2-0.6", random_disks(1000000, 0.2, 0.6, 3), 3);
   churn(quick ? 20000 : 100000, quick ? 100000 : 1000000, 4);
   return 0;
 }

@@ -15,55 +15,38 @@
 #include <vector>
 
 #include "../bvh.h"
-
-#if __has_include(<valgrind/callgrind.h>)
-#include <valgrind/callgrind.h>
-#else
-#define CALLGRIND_START_INSTRUMENTATION
-#define CALLGRIND_STOP_INSTRUMENTATION
-#endif
+#include "peers.h"
+#include "random_disks.h"
 
 namespace {
 
-std::vector<Disk> disks(std::size_t n, double rlo, double rhi, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> xy(0, 1000), r(rlo, rhi);
-  std::vector<Disk> v;
-  v.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const double x = xy(rng), y = xy(rng);
-    v.emplace_back(Point(x, y), r(rng), Color(0, 0, 0));
-  }
-  return v;
-}
-
 int pairs() {
-  const std::vector<Disk> v = disks(100000, 2, 7.5, 2);
-  CALLGRIND_START_INSTRUMENTATION;
+  const std::vector<Disk> v = random_disks(100000, 2, 7.5, 2);
+  BENCH_CG_START();
   BVH<Disk> tree(4, BVH<Disk>::unlimited);
   tree.construct(v);
   const std::size_t k = tree.count_overlapping_pairs();
-  CALLGRIND_STOP_INSTRUMENTATION;
+  BENCH_CG_STOP();
   std::printf("pairs: %zu\n", k);
   return 0;
 }
 
 int churn() {
-  std::vector<Disk> live = disks(20000, 0.5, 2, 4);
-  const std::vector<Disk> fresh = disks(50000, 0.5, 2, 5);
+  std::vector<Disk> live = random_disks(20000, 0.5, 2, 4);
+  const std::vector<Disk> fresh = random_disks(50000, 0.5, 2, 5);
   std::mt19937_64 rng(6);
   std::vector<std::size_t> at(fresh.size());
   for (std::size_t &a : at) a = std::size_t(rng() % live.size());
   BVH<Disk> tree(4, BVH<Disk>::unlimited);
   for (const Disk &d : live) tree.insert(d);
-  CALLGRIND_START_INSTRUMENTATION;
+  BENCH_CG_START();
   std::size_t removed = 0;
   for (std::size_t i = 0; i < fresh.size(); ++i) {
     removed += tree.erase(live[at[i]]);
     live[at[i]] = fresh[i];
     tree.insert(fresh[i]);
   }
-  CALLGRIND_STOP_INSTRUMENTATION;
+  BENCH_CG_STOP();
   std::printf("churn: removed %zu, size %zu, height %d, sah %.6f, valid %d\n", removed, tree.size(), tree.height(),
               tree.sah_cost(), int(tree.validate()));
   return removed == fresh.size() && tree.validate() ? 0 : 1;
