@@ -396,7 +396,7 @@ struct Box {
 /// With SSE2 the four at once and without branches: every box a node
 /// stores and every query's box is rounded, and the scalar steps' branches
 /// go either way at random.
-inline void round_out(const Box &b, float out[4]) {
+BVH_ALWAYS_INLINE void round_out(const Box &b, float out[4]) {
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
   const __m128d lo = _mm_set_pd(b.y0, b.x0), hi = _mm_set_pd(b.y1, b.x1);
   const __m128 f = _mm_movelh_ps(_mm_cvtpd_ps(lo), _mm_cvtpd_ps(hi));
