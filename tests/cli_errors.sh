@@ -13,7 +13,7 @@ bin=${2:-./bvh.out}
 tag=${3:-}
 rm -rf "$dir"
 mkdir -p "$dir"
-good=inputs/36.disks
+good=inputs/gen_36.disks
 
 # expect NAME STATUS PATTERN -- ARGS...   (the output is $dir/out.html)
 expect() {

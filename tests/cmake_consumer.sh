@@ -43,11 +43,11 @@ if step cmake_configure_build_install_bvh bvh bash -c "
   if [ -z "$missing" ]; then echo "ok cmake_install_has_headers_cli_and_config"; else
     echo "FAIL cmake_install_has_headers_cli_and_config missing:$missing"; fi
   # The installed bvh.out prints the hand-checked golden statistics.
-  if "$prefix/bin/bvh.out" -i inputs/36.triangles -o "$dir/36.html" --depth_limit 2 --visualize --print_tree \
-    >"$dir/36.txt" 2>&1 && cmp -s "$dir/36.txt" expected_output/inputs/36_triangles_2.txt; then
+  if "$prefix/bin/bvh.out" -i inputs/gen_36.triangles -o "$dir/36.html" --depth_limit 2 --visualize --print_tree \
+    >"$dir/36.txt" 2>&1 && cmp -s "$dir/36.txt" expected_output/inputs/gen_36_triangles_2.txt; then
     echo "ok cmake_installed_bvh_out_matches_golden"
   else
-    echo "FAIL cmake_installed_bvh_out_matches_golden diff $dir/36.txt expected_output/inputs/36_triangles_2.txt"
+    echo "FAIL cmake_installed_bvh_out_matches_golden diff $dir/36.txt expected_output/inputs/gen_36_triangles_2.txt"
   fi
 
   # 2. find_package against the install; the package must come from the prefix.
@@ -59,7 +59,7 @@ if step cmake_configure_build_install_bvh bvh bash -c "
     else
       echo "FAIL cmake_consumer_found_the_installed_package bvh_DIR is $(grep '^bvh_DIR' "$dir/consumer-find/CMakeCache.txt")"
     fi
-    step cmake_consumer_find_package_runs consumer-find-run "$dir/consumer-find/consumer" inputs/overlap_1000.disks
+    step cmake_consumer_find_package_runs consumer-find-run "$dir/consumer-find/consumer" inputs/gen_overlap_1000.disks
   fi
 fi
 
@@ -67,5 +67,5 @@ fi
 if step cmake_consumer_add_subdirectory consumer-sub bash -c "
   cmake -S tests/consumer -B '$dir/consumer-sub' -DBVH_SOURCE_DIR='$src' &&
   cmake --build '$dir/consumer-sub' -j $jobs"; then
-  step cmake_consumer_add_subdirectory_runs consumer-sub-run "$dir/consumer-sub/consumer" inputs/overlap_1000.disks
+  step cmake_consumer_add_subdirectory_runs consumer-sub-run "$dir/consumer-sub/consumer" inputs/gen_overlap_1000.disks
 fi
