@@ -54,3 +54,20 @@ case_ progress_never_in_redirected_output "[ ! -s '$dir/redirected.err' ] && cmp
 python3 tests/stderr_on_tty.py "$dir/quick_stdout.txt" "$bin" -i inputs/gen_36.disks -o "$dir/quick.html" --depth_limit 2 \
   >"$dir/quick_stderr.txt" 2>&1
 case_ progress_not_shown_for_a_quick_run "[ ! -s '$dir/quick_stderr.txt' ]" "got: $(head -c 200 "$dir/quick_stderr.txt" | od -An -c | head -3)"
+
+# --generate on a terminal: the shapes placed and the tries made, then the
+# writing; redirected, nothing; the scene is the same either way.
+python3 tests/stderr_on_tty.py "$dir/gen_tty_stdout.txt" env BVH_PROGRESS_DELAY=0 "$bin" --generate disks 100000 --seed 2 \
+  -o "$dir/gen_tty.disks" >"$dir/gen_tty_stderr.txt" 2>&1
+rc=$?
+BVH_PROGRESS_DELAY=0 "$bin" --generate disks 100000 --seed 2 -o "$dir/gen_redirected.disks" >"$dir/gen_redirected.txt" \
+  2>"$dir/gen_redirected.err"
+rc2=$?
+case_ progress_on_a_terminal_shows_generating_and_writing "[ $rc -eq 0 ] &&
+  grep -qE 'bvh.out: generating 100000 disks: [0-9]+ of 100000 shapes \\([0-9]+%\\), [0-9]+ tries' '$dir/gen_tty_stderr.txt' &&
+  grep -q 'bvh.out: writing $dir/gen_tty.disks' '$dir/gen_tty_stderr.txt' &&
+  [ \"\$(tail -c 4 '$dir/gen_tty_stderr.txt' | od -An -c | tr -d ' ')\" = '\\r033[K' ]" \
+  "exit $rc; see $dir/gen_tty_stderr.txt"
+case_ generate_progress_never_in_redirected_output "[ $rc2 -eq 0 ] && [ ! -s '$dir/gen_redirected.err' ] &&
+  [ ! -s '$dir/gen_redirected.txt' ] && [ ! -s '$dir/gen_tty_stdout.txt' ] &&
+  cmp -s '$dir/gen_tty.disks' '$dir/gen_redirected.disks'" "stderr: $(head -c 200 "$dir/gen_redirected.err")"
