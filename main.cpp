@@ -82,11 +82,12 @@ const char *const kHelp =
     "When stderr is a terminal, a run longer than a second shows its progress there\n"
     "(reading, building or sampling, writing); never when stderr is redirected.\n";
 
-/// A command-line mistake: reported with the usage, exit status 2. The
-/// message quotes the user's words, so control bytes in them are shown as
-/// \xNN and a huge word is cut: the message stays one readable line.
+/// A command-line mistake: reported with the usage (a file that cannot be
+/// opened or written: without, as one line), exit status 2. The message
+/// quotes the user's words, so control bytes in them are shown as \xNN and a
+/// huge word is cut: the message stays one readable line.
 struct UsageError {
-  explicit UsageError(const std::string &text) {
+  explicit UsageError(const std::string &text, bool with_usage = true) : show_usage(with_usage) {
     const std::size_t kMaxShown = 1000;
     for (std::size_t i = 0; i < text.size() && message.size() < kMaxShown; ++i) {
       const unsigned char c = static_cast<unsigned char>(text[i]);
@@ -101,46 +102,10 @@ struct UsageError {
     if (message.size() >= kMaxShown) message += "...";
   }
   std::string message;
+  bool show_usage;
 };
 
 using namespace bvh_scene;
-
-// ---------------------------------------------------------------------------
-// --generate: the scene text (scene.h), written under a temporary name.
-
-template <class T>
-int generate(const std::string &kind, long count, std::uint64_t seed, double lo, double hi, bool overlap,
-             const std::string &path) {
-  std::string text;
-  const long made = generate_scene<T>(kind, count, seed, lo, hi, overlap, text);
-  if (made < count) {
-    std::cerr << "bvh.out: could place only " << made << " of " << count
-              << " non-overlapping shapes; choose a smaller --size or --overlap\n";
-    return 1;
-  }
-  const std::string temp = path + ".partial";
-  {
-    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
-    if (!out) {
-      std::cerr << "bvh.out: " << path << ": cannot write: " << std::strerror(errno) << "\n";
-      return 2;
-    }
-    out << text;
-    out.flush();
-    if (!out) {
-      std::cerr << "bvh.out: " << path << ": write failed\n";
-      out.close();
-      std::remove(temp.c_str());
-      return 1;
-    }
-  }
-  if (std::rename(temp.c_str(), path.c_str()) != 0) {
-    std::cerr << "bvh.out: " << path << ": cannot write: " << std::strerror(errno) << "\n";
-    std::remove(temp.c_str());
-    return 2;
-  }
-  return 0;
-}
 
 // ---------------------------------------------------------------------------
 // Progress on a terminal: one line on stderr, rewritten in place, from a
@@ -177,12 +142,17 @@ public:
     total_ = total;
     unit_ = unit;
     done_.store(0, std::memory_order_relaxed);
+    tries_.store(-1, std::memory_order_relaxed);
     paused_ = false;
     show();
   }
   /// How far the stage is (cheap: the ticker reads it).
   void advance(std::uint64_t done) {
     if (enabled_) done_.store(done, std::memory_order_relaxed);
+  }
+  /// A second count shown after the first, as ", N tries" (--generate).
+  void detail(long tries) {
+    if (enabled_) tries_.store(tries, std::memory_order_relaxed);
   }
   /// Clears the line until the next stage().
   void pause() {
@@ -215,6 +185,12 @@ private:
                     double(done) * (mb ? 1e-6 : 1.0), double(total_) * (mb ? 1e-6 : 1.0), unit_,
                     100.0 * double(done) / double(total_));
       line += buf;
+      const long tries = tries_.load(std::memory_order_relaxed);
+      if (tries >= 0) {
+        std::snprintf(buf, sizeof buf, tries >= 1000000 ? ", %.1fM tries" : ", %.0f tries",
+                      tries >= 1000000 ? double(tries) * 1e-6 : double(tries));
+        line += buf;
+      }
     } else {
       line += "...";
     }
@@ -242,8 +218,70 @@ private:
   std::uint64_t total_ = 0;
   const char *unit_ = "";
   std::atomic<std::uint64_t> done_{0};
+  std::atomic<long> tries_{-1};
   bool paused_ = false, shown_ = false, stopping_ = false;
 };
+
+// ---------------------------------------------------------------------------
+// --generate: the scene text (scene.h), written under a temporary name.
+
+// On a terminal, the progress line shows the shapes placed and the tries
+// made ("generating 1000000 disks: 59 of 1000000 shapes (0%), 4.2M tries").
+// A non-overlapping request that cannot fit by max_non_overlapping()'s
+// packing bound (scene.h) is refused before the first try.
+template <class T>
+int generate(const std::string &kind, long count, std::uint64_t seed, double lo, double hi, bool overlap,
+             const std::string &path) {
+  const double most = max_non_overlapping(kind, lo);
+  if (!overlap && double(count) > most) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, " of %s at least %g", kind == "disks" ? "radius" : "size", lo);
+    std::cerr << "bvh.out: " << count << " " << kind << buf
+              << " cannot fit in the 1000 x 1000 canvas without touching: a packing bound allows at most "
+              << static_cast<long long>(most) << " (random placement fits fewer); choose a smaller --size, a "
+              << "smaller COUNT, or --overlap\n";
+    return 2;
+  }
+  Progress progress;
+  progress.stage("generating " + std::to_string(count) + " " + kind, std::uint64_t(count), "shapes");
+  std::string text;
+  const long made = generate_scene<T>(kind, count, seed, lo, hi, overlap, text, [&](long placed, long tries) {
+    progress.advance(std::uint64_t(placed));
+    progress.detail(tries);
+  });
+  progress.pause();
+  if (made < count) {
+    std::cerr << "bvh.out: could place only " << made << " of " << count
+              << " non-overlapping shapes; choose a smaller --size or --overlap\n";
+    return 1;
+  }
+  progress.stage("writing " + path);
+  const std::string temp = path + ".partial";
+  {
+    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+    if (!out) {
+      progress.pause();
+      std::cerr << "bvh.out: " << path << ": cannot write: " << std::strerror(errno) << "\n";
+      return 2;
+    }
+    out << text;
+    out.flush();
+    if (!out) {
+      progress.pause();
+      std::cerr << "bvh.out: " << path << ": write failed\n";
+      out.close();
+      std::remove(temp.c_str());
+      return 1;
+    }
+  }
+  if (std::rename(temp.c_str(), path.c_str()) != 0) {
+    progress.pause();
+    std::cerr << "bvh.out: " << path << ": cannot write: " << std::strerror(errno) << "\n";
+    std::remove(temp.c_str());
+    return 2;
+  }
+  return 0;
+}
 
 // ---------------------------------------------------------------------------
 // The course's workflow.
@@ -341,6 +379,47 @@ std::string option_name(const std::string &arg) {
   return "";
 }
 
+/// Levenshtein distance of a and b, '-' and '_' counting as the same letter.
+std::size_t edit_distance(const std::string &a, const std::string &b) {
+  auto same = [](char x, char y) { return x == y || ((x == '-' || x == '_') && (y == '-' || y == '_')); };
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (same(a[i - 1], b[j - 1]) ? 0 : 1)});
+      diagonal = up;
+    }
+  }
+  return row[b.size()];
+}
+
+/// "unknown argument 'ARG'", with the nearest option when one is close (at
+/// most 2 edits, '-' for '_' free: --depth-limit, -depth_limit, --visualise),
+/// or the -i a scene name lacks.
+std::string unknown_argument(const std::string &arg) {
+  static const char *const names[] = {"--input", "--output", "--split_threshold", "--depth_limit",
+                                      "--incremental", "--discard_overlap", "--visualize", "--print_tree",
+                                      "--generate", "--seed", "--size", "--overlap", "--pairs", "--build",
+                                      "--no_output", "--help"};
+  std::string message = "unknown argument '" + arg + "'";
+  if (arg.size() > 2 && arg.size() < 40 && arg[0] == '-') {
+    std::string best;
+    std::size_t best_distance = 3;
+    for (const char *name : names) {
+      const std::size_t d = edit_distance(arg, name);
+      if (d < best_distance) best_distance = d, best = name;
+    }
+    if (!best.empty()) message += "; did you mean " + best + "?";
+  } else if (arg[0] != '-' && (ends_with(arg, ".disks") || ends_with(arg, ".triangles") ||
+                               ends_with(arg, ".quads") || ends_with(arg, ".shapes"))) {
+    message += "; did you mean -i " + arg + "?";
+  }
+  return message;
+}
+
 /// The command line (without --help, which bvh_main handles first). Every
 /// option may be given once: a repeat is more likely a slip (two -o) than
 /// a wish, so it is an error rather than "the last one wins".
@@ -350,7 +429,7 @@ Options parse_options(int argc, char **argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     const std::string name = option_name(arg);
-    if (name.empty()) throw UsageError{"unknown argument '" + arg + "'"};
+    if (name.empty()) throw UsageError{unknown_argument(arg)};
     if (std::find(seen.begin(), seen.end(), name) != seen.end()) throw UsageError{arg + " given twice"};
     seen.push_back(name);
     // An empty word, or an option where the value should be, means the value was forgotten.
@@ -480,9 +559,10 @@ int bvh_main(int argc, char **argv) {
   std::string error;
   try {
     o = parse_options(argc, argv);
-    if (!check_files(o, error)) throw UsageError{error};
+    if (!check_files(o, error)) throw UsageError{error, false};
   } catch (const UsageError &e) {
-    std::cerr << "bvh.out: " << e.message << "\n" << kUsage;
+    std::cerr << "bvh.out: " << e.message << "\n";
+    if (e.show_usage) std::cerr << kUsage;
     return 2;
   }
   try {

@@ -1,6 +1,6 @@
 // examples/read_scene.cpp — read a scene file with scene.h, the reader of
 // bvh.out (README.txt, THE LIBRARY IN TEN LINES). Run from the project's folder: it reads
-// inputs/1000.disks and checks the count against the file's lines, then
+// inputs/gen_1000.disks and checks the count against the file's lines, then
 // reads a broken copy and checks the "FILE:LINE: what is wrong" message.
 // Exit status 1 if either differs.
 #include <chrono>
@@ -17,10 +17,10 @@
 int main() {
   // [readme:read]
   std::vector<Disk> disks;  std::string error;
-  if (!bvh_scene::load_scene("inputs/1000.disks", disks, error))
+  if (!bvh_scene::load_scene("inputs/gen_1000.disks", disks, error))
     std::cerr << error << "\n";          // "FILE:LINE: what is wrong"
   // [end]
-  std::ifstream in("inputs/1000.disks");
+  std::ifstream in("inputs/gen_1000.disks");
   std::size_t lines = 0;
   std::string line;
   while (std::getline(in, line))

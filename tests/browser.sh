@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# tests/browser.sh OUTDIR DATA — a real browser opens the picture.
+# tests/browser.sh OUTDIR SCENE — a real browser opens the picture.
+# SCENE is the course's 36.triangles, or our inputs/gen_36.triangles.
 # Renders the handout's 36_triangles_2 picture (--depth_limit 2 --visualize)
 # in headless Chromium at two window sizes and checks each screenshot with
 # tests/browser_check.py: the whole black frame is visible and the root's
@@ -10,7 +11,7 @@
 # prints "skip REASON" and nothing else when Chromium is not installed.
 set -u
 cd "$(dirname "$0")/.."
-out=$1 data=$2
+out=$1 scene=$2
 browser=$(command -v chromium || command -v chromium-browser || true)
 if [ -z "$browser" ]; then
   echo "skip Chromium is not installed (apt-get install chromium)"
@@ -48,7 +49,6 @@ check() { # name expect(pass|fail) html window-size
   fi
 }
 
-scene=$data/36.triangles
 if ! ./bvh.out -i "$scene" -o "$out/36_triangles_2.html" --depth_limit 2 --visualize --print_tree \
   >"$out/tree.txt" 2>"$out/bvh.err"; then
   echo "FAIL browser_render bvh.out failed: $(head -c 200 "$out/bvh.err")"

@@ -13,7 +13,7 @@ bin=${2:-./bvh.out}
 tag=${3:-}
 rm -rf "$dir"
 mkdir -p "$dir"
-good=inputs/36.disks
+good=inputs/gen_36.disks
 
 # expect NAME STATUS PATTERN -- ARGS...   (the output is $dir/out.html)
 expect() {
@@ -69,6 +69,52 @@ expect cli_no_output_with_output 2 "--no_output and -o exclude each other" -- -i
 expect cli_generate_with_no_output 2 "--generate needs -o SCENE, not --no_output" -- --generate disks 10 --no_output
 expect cli_no_output_missing_input_file 2 "cannot open" -- -i "$dir/nothing.disks" --no_output
 expect cli_control_bytes_in_argument_stay_one_line 2 "unknown argument 'a\\\\x0ab'" -- "$(printf 'a\nb')" -o "$o"
+
+# A near miss gets the nearest option (edit distance, '-' for '_' free); a
+# scene name without -i gets the -i; a word near nothing gets no guess.
+expect cli_unknown_flag_suggests_nearest 2 "unknown argument '--depth-limit'; did you mean --depth_limit\?" -- \
+  -i $good -o "$o" --depth-limit 2
+expect cli_misspelt_flag_suggests_nearest 2 "unknown argument '--visualise'; did you mean --visualize\?" -- \
+  -i $good -o "$o" --visualise
+expect cli_single_dash_flag_suggests_nearest 2 "did you mean --print_tree\?" -- -i $good -o "$o" -print_tree
+expect cli_scene_without_i_suggests_i 2 "unknown argument 'gen_36.disks'; did you mean -i gen_36.disks\?" -- \
+  gen_36.disks -o "$o"
+expect cli_far_word_gets_no_guess 2 "unknown argument '--bogus'\$" -- -i $good -o "$o" --bogus
+# A file that cannot be opened or written: its one line, without the usage.
+one_line() { # NAME: the last case's stderr is exactly one line
+  if [ "$(wc -l <"$dir/stderr")" -eq 1 ] && ! grep -q '^usage:' "$dir/stderr"; then echo "ok $1$tag"; else
+    echo "FAIL $1$tag stderr is not one line: $(head -c 300 "$dir/stderr")"; fi
+}
+expect cli_missing_input_file_message 2 "^bvh.out: $dir/nothing.disks: cannot open: No such file or directory\$" -- \
+  -i "$dir/nothing.disks" -o "$o"
+one_line cli_missing_input_file_prints_one_line
+expect cli_unwritable_output_message 2 "cannot write" -- -i $good -o "$dir/no/such/dir/out.html"
+one_line cli_unwritable_output_prints_one_line
+# --generate refuses at once what a packing bound says cannot fit (the issue's
+# example: 1M disks of radius 50-60 took 2.5 minutes to fail), and writes nothing.
+rm -f "$dir/x.disks"
+start=$(date +%s%N)
+timeout 60 "$bin" --generate disks 1000000 --size 50:60 -o "$dir/x.disks" >"$dir/stdout" 2>"$dir/stderr"
+rc=$?
+ms=$((($(date +%s%N) - start) / 1000000))
+if [ $rc -eq 2 ] && [ $ms -lt 2000 ] && [ ! -e "$dir/x.disks" ] && ! ls "$dir"/*.partial >/dev/null 2>&1 &&
+  grep -qE "^bvh.out: 1000000 disks of radius at least 50 cannot fit in the 1000 x 1000 canvas without touching: a packing bound allows at most 113 " "$dir/stderr" &&
+  [ "$(wc -l <"$dir/stderr")" -eq 1 ]; then
+  echo "ok cli_generate_refuses_what_cannot_fit_at_once$tag"
+else
+  echo "FAIL cli_generate_refuses_what_cannot_fit_at_once$tag exit $rc after $ms ms: $(head -c 300 "$dir/stderr")"
+fi
+expect cli_generate_refuses_quads_past_the_bound 2 "cannot fit .* at most" -- --generate quads 5000 --size 30:40 -o "$dir/x.quads"
+# At the bound it is not refused: it tries, and reports what it placed.
+expect cli_generate_at_the_bound_tries 1 "could place only [0-9]+ of 113 non-overlapping shapes" -- \
+  --generate disks 113 --size 50:60 -o "$dir/x.disks"
+# --overlap has no bound.
+rm -f "$dir/x.disks"
+if "$bin" --generate disks 1000 --size 50:60 --overlap -o "$dir/x.disks" 2>"$dir/stderr" && [ "$(wc -l <"$dir/x.disks")" -eq 1000 ]; then
+  echo "ok cli_generate_overlap_has_no_bound$tag"
+else
+  echo "FAIL cli_generate_overlap_has_no_bound$tag $(head -c 300 "$dir/stderr")"
+fi
 
 # Wrong scenes: FILE:LINE: message, exit 1, no picture.
 bad_scene() { # NAME SUFFIX PATTERN CONTENT

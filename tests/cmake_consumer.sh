@@ -3,6 +3,9 @@
 # meets it: configure, build and install bvh into DIR/prefix; build
 # tests/consumer against that install with find_package, and again from the
 # sources with add_subdirectory; run the consumer and the installed bvh.out.
+# The consumer includes <bvh/bvh.h> and <bvh/scene.h> both ways. Also: with
+# no build type given, bvh's own build is Release (-O3), a given one stands,
+# and a parent project's empty build type is not overridden.
 # Prints `ok NAME` or `FAIL NAME why` per case (read by tests/run.sh), or
 # `skip REASON` alone when cmake is not installed.
 set -u
@@ -32,7 +35,7 @@ step() { # NAME LOG COMMAND...: one case, passing when COMMAND exits 0
 
 # 1. bvh itself: configure, build (bvh.out), install.
 if step cmake_configure_build_install_bvh bvh bash -c "
-  cmake -S '$src' -B '$dir/bvh-build' -DCMAKE_INSTALL_PREFIX='$prefix' &&
+  cmake -S '$src' -B '$dir/bvh-build' -DCMAKE_INSTALL_PREFIX='$prefix' -DCMAKE_EXPORT_COMPILE_COMMANDS=ON &&
   cmake --build '$dir/bvh-build' -j $jobs && cmake --install '$dir/bvh-build'"; then
   missing=
   for f in include/bvh/bvh.h include/bvh/shapes.h include/bvh/intersect.h include/bvh/distance.h \
@@ -43,11 +46,19 @@ if step cmake_configure_build_install_bvh bvh bash -c "
   if [ -z "$missing" ]; then echo "ok cmake_install_has_headers_cli_and_config"; else
     echo "FAIL cmake_install_has_headers_cli_and_config missing:$missing"; fi
   # The installed bvh.out prints the hand-checked golden statistics.
-  if "$prefix/bin/bvh.out" -i inputs/36.triangles -o "$dir/36.html" --depth_limit 2 --visualize --print_tree \
-    >"$dir/36.txt" 2>&1 && cmp -s "$dir/36.txt" expected_output/inputs/36_triangles_2.txt; then
+  if "$prefix/bin/bvh.out" -i inputs/gen_36.triangles -o "$dir/36.html" --depth_limit 2 --visualize --print_tree \
+    >"$dir/36.txt" 2>&1 && cmp -s "$dir/36.txt" expected_output/inputs/gen_36_triangles_2.txt; then
     echo "ok cmake_installed_bvh_out_matches_golden"
   else
-    echo "FAIL cmake_installed_bvh_out_matches_golden diff $dir/36.txt expected_output/inputs/36_triangles_2.txt"
+    echo "FAIL cmake_installed_bvh_out_matches_golden diff $dir/36.txt expected_output/inputs/gen_36_triangles_2.txt"
+  fi
+
+  # No CMAKE_BUILD_TYPE given: Release, and its -O3 on bvh.out's compile line.
+  if grep -q '^CMAKE_BUILD_TYPE:STRING=Release$' "$dir/bvh-build/CMakeCache.txt" &&
+    grep -q '"command": .* -O3 .*main.cpp' "$dir/bvh-build/compile_commands.json"; then
+    echo "ok cmake_default_build_type_is_release"
+  else
+    echo "FAIL cmake_default_build_type_is_release $(grep '^CMAKE_BUILD_TYPE' "$dir/bvh-build/CMakeCache.txt"); see $dir/bvh-build/compile_commands.json"
   fi
 
   # 2. find_package against the install; the package must come from the prefix.
@@ -59,7 +70,7 @@ if step cmake_configure_build_install_bvh bvh bash -c "
     else
       echo "FAIL cmake_consumer_found_the_installed_package bvh_DIR is $(grep '^bvh_DIR' "$dir/consumer-find/CMakeCache.txt")"
     fi
-    step cmake_consumer_find_package_runs consumer-find-run "$dir/consumer-find/consumer" inputs/overlap_1000.disks
+    step cmake_consumer_find_package_runs consumer-find-run "$dir/consumer-find/consumer" inputs/gen_overlap_1000.disks
   fi
 fi
 
@@ -67,5 +78,19 @@ fi
 if step cmake_consumer_add_subdirectory consumer-sub bash -c "
   cmake -S tests/consumer -B '$dir/consumer-sub' -DBVH_SOURCE_DIR='$src' &&
   cmake --build '$dir/consumer-sub' -j $jobs"; then
-  step cmake_consumer_add_subdirectory_runs consumer-sub-run "$dir/consumer-sub/consumer" inputs/overlap_1000.disks
+  step cmake_consumer_add_subdirectory_runs consumer-sub-run "$dir/consumer-sub/consumer" inputs/gen_overlap_1000.disks
+  # bvh under a parent project: the parent's (empty) build type stays its own.
+  if grep -q '^CMAKE_BUILD_TYPE:STRING=$' "$dir/consumer-sub/CMakeCache.txt"; then
+    echo "ok cmake_subproject_leaves_the_parents_build_type"
+  else
+    echo "FAIL cmake_subproject_leaves_the_parents_build_type $(grep '^CMAKE_BUILD_TYPE' "$dir/consumer-sub/CMakeCache.txt")"
+  fi
+fi
+
+# 4. A build type that is given stands (configure only).
+if cmake -S "$src" -B "$dir/bvh-debug" -DCMAKE_BUILD_TYPE=Debug >"$dir/bvh-debug.log" 2>&1 &&
+  grep -q '^CMAKE_BUILD_TYPE:STRING=Debug$' "$dir/bvh-debug/CMakeCache.txt"; then
+  echo "ok cmake_given_build_type_stands"
+else
+  echo "FAIL cmake_given_build_type_stands see $dir/bvh-debug.log"
 fi

@@ -56,7 +56,7 @@ if command -v clang++ >/dev/null 2>&1; then
     bad course_framework_build_clang++ "$(head -c 600 "$work/bvh_clang.out.log")"
   fi
 else
-  echo "skipped course_framework_build_clang++: clang++ is not installed"
+  echo "skipped course_framework_build_clang++: clang++ not installed (apt-get install clang)"
 fi
 build brute.out "$CXX" -std=c++17 -O1 brute.cpp shapes.cpp utils.cpp || bad course_framework_brute_build "$(head -c 600 "$work/brute.out.log")"
 build instructor_test.out "$CXX" "${flags[@]}" instructor_test.cpp shapes.cpp utils.cpp ||
@@ -69,10 +69,14 @@ shape_lines() { grep -E '^<(circle|polygon) ' "$1" | sed 's/ style=.*//' | sort;
 # --pairs, not .shapes), on one data folder.
 run_folder() { # label data-folder
   local label=$1 data=$2 differs=0 discards=0
+  # Our own scenes and their goldens carry the prefix gen_ (tests/golden.list).
+  local prefix=
+  [ "$label" = inputs ] && prefix=gen_
   while read -r name args; do
     [[ -z $name || $name == \#* || $args == *--pairs* || $args == *.shapes* ]] && continue
+    name=$prefix$name
     local input
-    input=$data/$(echo "$args" | sed -E 's/.*-i ([^ ]+).*/\1/')
+    input=$data/$prefix$(echo "$args" | sed -E 's/.*-i ([^ ]+).*/\1/')
     # shellcheck disable=SC2086
     set -- $args
     local argv=() a
@@ -131,7 +135,7 @@ if [ -f "$COURSE_DATA/36.triangles" ]; then
   scenes=("$COURSE_DATA/200.disks" "$COURSE_DATA/200.triangles" "$COURSE_DATA/200.quads")
 else
   echo "skipped course_framework_course_*: no course data at COURSE_DATA=$COURSE_DATA"
-  scenes=(inputs/1000.disks inputs/1000.triangles inputs/1000.quads)
+  scenes=(inputs/gen_1000.disks inputs/gen_1000.triangles inputs/gen_1000.quads)
 fi
 
 # 3. The instructor's kind of test, and the program, under valgrind.
@@ -148,16 +152,16 @@ if [ -x "$work/instructor_test.out" ]; then
     else
       bad course_framework_instructor_test_valgrind "$(head -c 600 "$work/it_vg.log")"
     fi
-    if "${vg[@]}" "$work/bvh.out" -i inputs/overlap_1000.triangles -o "$work/v1.html" --depth_limit 8 --incremental \
+    if "${vg[@]}" "$work/bvh.out" -i inputs/gen_overlap_1000.triangles -o "$work/v1.html" --depth_limit 8 --incremental \
       --discard_overlap >"$work/vg1.log" 2>&1 &&
-      "${vg[@]}" "$work/bvh.out" -i inputs/1000.quads -o "$work/v2.html" --depth_limit 3 --visualize --print_tree \
+      "${vg[@]}" "$work/bvh.out" -i inputs/gen_1000.quads -o "$work/v2.html" --depth_limit 3 --visualize --print_tree \
         >"$work/vg2.log" 2>&1; then
       ok course_framework_bvh_out_valgrind
     else
       bad course_framework_bvh_out_valgrind "$(grep -v '^ *\(inner\|leaf\|node\|max\)' "$work"/vg*.log | head -c 600)"
     fi
   else
-    echo "skipped course_framework_*_valgrind: valgrind is not installed"
+    echo "skipped course_framework_*_valgrind: valgrind not installed (apt-get install valgrind)"
   fi
 fi
 

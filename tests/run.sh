@@ -28,6 +28,24 @@ BUILD=${BUILD:-build}
 JOBS=${JOBS:-$(nproc 2>/dev/null || echo 2)}
 MAKE=${MAKE:-make}
 export CXX COURSE_DATA BUILD JOBS
+# Arguments: none (every layer: make test), --quick (make check: bvh.out and
+# the unit tests at -O1, then the unit and golden layers), or layer names
+# (the full build, then only those layers: tests/run.sh valgrind golden).
+ALL_LAYERS="fuzz valgrind sanitizers cmake course_framework golden python_model unit portable cli_errors cli_output demo examples asserts tsan browser"
+QUICK=no
+ONLY=()
+for a in "$@"; do
+  case $a in
+    --quick) QUICK=yes ;;
+    *)
+      if [[ " $ALL_LAYERS " != *" $a "* ]]; then
+        echo "tests/run.sh: unknown layer '$a'; the layers: $ALL_LAYERS (or --quick)" >&2
+        exit 2
+      fi
+      ONLY+=("$a")
+      ;;
+  esac
+done
 LOGS=$BUILD/test-logs
 OUT=$BUILD/test-out
 RESULTS=$BUILD/test-results
@@ -49,12 +67,18 @@ run_suite() {
   local log
   log=$(logname "$name")
   "$@" >"$log" 2>&1
-  local rc=$?
+  suite_result "$name" "$log" $? "$1"
+}
+# The lines of a suite's log LOG (exit status RC, binary BIN).
+suite_result() {
+  local name=$1 log=$2 rc=$3
+  set -- "$4"
   local last
   last=$(tail -n 1 "$log")
   if [[ $last =~ ^([0-9]+)\ passed,\ ([0-9]+)\ failed$ ]]; then
     local p=${BASH_REMATCH[1]} f=${BASH_REMATCH[2]} shown
     grep -E '^FAIL ' "$log" | sed "s/^FAIL /FAIL $name: /"
+    grep -E '^skipped ' "$log"
     shown=$(grep -cE '^FAIL ' "$log")
     [ "$f" -gt "$shown" ] && bad "$name" "$((f - shown)) more failed cases, see $log"
     echo "ok-suite $name: $p passed, $f failed"
@@ -90,44 +114,72 @@ relay() { # NAME LOG
 
 # ---------------------------------------------------------------------------
 # Layer machinery: `layer NAME COMMAND...` starts COMMAND in the background
-# (at most JOBS at once); results are printed in the order of the layers.
+# (at most JOBS at once) and prints "-- NAME started"; when a layer ends, its
+# results follow at once under "== NAME done (N s)". While nothing else is
+# printed, a line every $HEARTBEAT seconds names the layers still running, so
+# that a run is never silent for long.
+HEARTBEAT=${HEARTBEAT:-15}
 LAYERS=()
-PRINTED=0
+STARTED=()
+SHOWN=()
+LAST_LINE=$SECONDS
 print_done_layers() {
-  while [ "$PRINTED" -lt "${#LAYERS[@]}" ] && [ -f "$RESULTS/$PRINTED.done" ]; do
-    local name=${LAYERS[$PRINTED]} rc secs
-    read -r rc secs <"$RESULTS/$PRINTED.done"
-    echo "== $name ($secs s)"
-    cat "$RESULTS/$PRINTED.txt"
-    if ! grep -qE '^(ok|ok-suite|FAIL|skipped) ' "$RESULTS/$PRINTED.txt"; then
-      bad "layer_$name" "printed no result (exit $rc): see $LOGS/layer_$name.err" | tee -a "$RESULTS/$PRINTED.txt"
-    elif [ "$rc" -ne 0 ] && ! grep -q '^FAIL ' "$RESULTS/$PRINTED.txt"; then
-      bad "layer_$name" "exit status $rc without a FAIL line: see $LOGS/layer_$name.err" | tee -a "$RESULTS/$PRINTED.txt"
+  local i
+  for ((i = 0; i < ${#LAYERS[@]}; i++)); do
+    [ -n "${SHOWN[$i]:-}" ] && continue
+    [ -f "$RESULTS/$i.done" ] || continue
+    SHOWN[$i]=1
+    local name=${LAYERS[$i]} rc secs
+    read -r rc secs <"$RESULTS/$i.done"
+    echo "== $name done ($secs s)"
+    cat "$RESULTS/$i.txt"
+    if ! grep -qE '^(ok|ok-suite|FAIL|skipped) ' "$RESULTS/$i.txt"; then
+      bad "layer_$name" "printed no result (exit $rc): see $LOGS/layer_$name.err" | tee -a "$RESULTS/$i.txt"
+    elif [ "$rc" -ne 0 ] && ! grep -q '^FAIL ' "$RESULTS/$i.txt"; then
+      bad "layer_$name" "exit status $rc without a FAIL line: see $LOGS/layer_$name.err" | tee -a "$RESULTS/$i.txt"
     fi
-    PRINTED=$((PRINTED + 1))
+    LAST_LINE=$SECONDS
   done
+}
+running_layers() {
+  local i list=
+  for ((i = 0; i < ${#LAYERS[@]}; i++)); do
+    [ -f "$RESULTS/$i.done" ] || list+="${list:+, }${LAYERS[$i]} $((SECONDS - STARTED[i])) s"
+  done
+  echo "$list"
+}
+layers_running() {
+  local i n=0
+  for ((i = 0; i < ${#LAYERS[@]}; i++)); do [ -f "$RESULTS/$i.done" ] || n=$((n + 1)); done
+  echo $n
+}
+# One second of waiting: print what has ended, and the heartbeat when due.
+tick() {
+  sleep 1
+  print_done_layers
+  if [ $((SECONDS - LAST_LINE)) -ge "$HEARTBEAT" ]; then
+    echo "   ... still running: $(running_layers)"
+    LAST_LINE=$SECONDS
+  fi
 }
 layer() {
   local name=$1
   shift
-  while [ "$(jobs -rp | wc -l)" -ge "$JOBS" ]; do
-    wait -n
-    print_done_layers
-  done
+  if [ "${#ONLY[@]}" -gt 0 ] && [[ " ${ONLY[*]} " != *" $name "* ]]; then return; fi
+  while [ "$(layers_running)" -ge "$JOBS" ]; do tick; done
   local i=${#LAYERS[@]}
   LAYERS+=("$name")
+  STARTED[$i]=$SECONDS
   (
     start=$SECONDS
     "$@" >"$RESULTS/$i.txt" 2>"$LOGS/layer_$name.err" </dev/null
     echo "$? $((SECONDS - start))" >"$RESULTS/$i.done"
   ) &
-  print_done_layers
+  echo "-- $name started"
+  LAST_LINE=$SECONDS
 }
 finish_layers() {
-  while [ "$(jobs -rp | wc -l)" -gt 0 ]; do
-    wait -n
-    print_done_layers
-  done
+  while [ "$(layers_running)" -gt 0 ]; do tick; done
   wait
   print_done_layers
 }
@@ -148,6 +200,26 @@ unit_tests() {
   BVH_TEST_SCALE=0.3 run_suite test_bvh_scalar "$BUILD/test_bvh_scalar"
 }
 
+# make check's unit tests: the same suites, built at -O1 into $BUILD/check
+# (the Makefile's CHECK_CXXFLAGS: half the compile time of -O2) and already
+# run by the build, each at CHECK_SCALE of its random rounds, as soon as it
+# was built: here their output ($BUILD/check/test_*.out) is read.
+unit_tests_quick() {
+  local t out log rc
+  for t in bvh threads intersect dynamic moving parse; do
+    out=$BUILD/check/test_$t.out
+    log=$(logname "test_$t")
+    if [ ! -f "$out" ]; then
+      : >"$log"
+      suite_result "test_$t" "$log" 1 "$BUILD/check/test_$t"
+      continue
+    fi
+    rc=$(tail -n 1 "$out" | sed -n 's/^exit status //p')
+    sed '$d' "$out" >"$log"
+    suite_result "test_$t" "$log" "${rc:-1}" "$BUILD/check/test_$t"
+  done
+}
+
 # The unit tests and the CLI under AddressSanitizer + UBSan.
 sanitizers() {
   BVH_TEST_SCALE=0.3 run_suite test_bvh_sanitized "$BUILD/test_bvh_san"
@@ -159,9 +231,9 @@ sanitizers() {
   run_suite test_names_sanitized "$BUILD/test_names_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
-    '$BUILD/bvh_san.out' -i inputs/overlap_1000.triangles -o '$OUT/san.html' --depth_limit 8 --incremental \
+    '$BUILD/bvh_san.out' -i inputs/gen_overlap_1000.triangles -o '$OUT/san.html' --depth_limit 8 --incremental \
       --discard_overlap --print_tree > '$OUT/san.txt' &&
-    cmp '$OUT/san.txt' expected_output/inputs/discard_overlap_1000_triangles.txt"
+    cmp '$OUT/san.txt' expected_output/inputs/gen_discard_overlap_1000_triangles.txt"
 }
 
 # Portable builds: test_bvh and test_dynamic under -std=c++20 (g++; test_bvh
@@ -248,8 +320,12 @@ examples() {
 golden_folder() { # label data-folder
   local label=$1 data=$2
   local expected=expected_output/$label
+  # Our own scenes and their goldens carry the prefix gen_ (tests/golden.list).
+  local prefix=
+  [ "$label" = inputs ] && prefix=gen_
   while read -r name args; do
     [[ -z $name || $name == \#* ]] && continue
+    name=$prefix$name
     # The course has no mixed scenes: .shapes cases run on inputs/ only.
     [[ $label == course && $args == *.shapes* ]] && continue
     # shellcheck disable=SC2086
@@ -259,7 +335,7 @@ golden_folder() { # label data-folder
       a=$1
       shift
       if [ "$a" = -i ]; then
-        argv+=(-i "$data/$1")
+        argv+=(-i "$data/$prefix$1")
         shift
       else
         argv+=("$a")
@@ -327,7 +403,7 @@ golden() {
       run_case "xml_well_formed_$(basename "$html" .html)" xmllint --noout "$html"
     done
   else
-    bad xmllint_available "xmllint is missing: apt-get install libxml2-utils"
+    skip "xml_well_formed_*" "xmllint not installed (apt-get install libxml2-utils)"
   fi
 }
 
@@ -346,10 +422,35 @@ python_model() {
 
 # A real browser: headless Chromium renders 36_triangles_2 (tests/browser.sh).
 browser() {
-  local data=inputs
-  [ -f "$COURSE_DATA/36.triangles" ] && data=$COURSE_DATA
-  bash tests/browser.sh "$OUT/browser" "$data" >"$LOGS/browser.log" 2>&1
+  local scene=inputs/gen_36.triangles
+  [ -f "$COURSE_DATA/36.triangles" ] && scene=$COURSE_DATA/36.triangles
+  bash tests/browser.sh "$OUT/browser" "$scene" >"$LOGS/browser.log" 2>&1
   relay "browser_*" "$LOGS/browser.log"
+}
+
+# make demo (tests/demo.sh): on the course's scenes its stdout is the
+# commands' stdout alone, and the handout's --print_tree example in it is
+# byte for byte the course's published 36_triangles_2_stdout.txt; without
+# course data it runs on inputs/gen_* and says so on stderr.
+demo_layer() {
+  local d=$OUT/demo
+  mkdir -p "$d"
+  if [ -f "$COURSE_DATA/36_triangles_2_stdout.txt" ]; then
+    local n
+    n=$(wc -c <"$COURSE_DATA/36_triangles_2_stdout.txt")
+    run_case demo_course_stdout_ends_with_the_handouts_bytes bash -c "
+      DEMO_DIR='$d/course' COURSE_DATA='$COURSE_DATA' bash tests/demo.sh >'$d/course.out' 2>'$d/course.err' &&
+      tail -c $n '$d/course.out' | cmp - '$COURSE_DATA/36_triangles_2_stdout.txt' &&
+      grep -q 'byte-identical' '$d/course.err'"
+    run_case demo_course_stdout_is_only_the_commands_output bash -c "
+      ! grep -qE '^(\\$|demo:| +\\()' '$d/course.out' && [ \"\$(grep -c '^node count:' '$d/course.out')\" = 11 ]"
+  else
+    skip demo_course "no course data at COURSE_DATA=$COURSE_DATA"
+  fi
+  run_case demo_without_course_data_says_it_runs_on_our_scenes bash -c "
+    DEMO_DIR='$d/ours' COURSE_DATA='$d/no-such-folder' bash tests/demo.sh >'$d/ours.out' 2>'$d/ours.err' &&
+    grep -q 'OUR OWN generated scenes inputs/gen_' '$d/ours.err' && grep -q 'will NOT match' '$d/ours.err' &&
+    cmp -s '$d/ours/36_triangles_2_stdout.txt' expected_output/inputs/gen_36_triangles_2.txt"
 }
 
 # Command-line and input errors: message, exit status, no output file; every
@@ -365,7 +466,7 @@ cli_errors() {
 # valgrind memcheck: unit tests and a bulk, an incremental and a discard run.
 valgrind_layer() {
   if ! have valgrind; then
-    bad valgrind_available "valgrind is missing: apt-get install valgrind"
+    skip "valgrind layer" "valgrind not installed (apt-get install valgrind)"
     return
   fi
   local VG=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=all --show-leak-kinds=all)
@@ -375,14 +476,14 @@ valgrind_layer() {
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_dynamic"
   BVH_TEST_SCALE=0.5 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_moving"
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_parse"
-  run_case valgrind_bulk_build "${VG[@]}" ./bvh.out -i inputs/1000.triangles -o "$OUT/vg_bulk.html" \
+  run_case valgrind_bulk_build "${VG[@]}" ./bvh.out -i inputs/gen_1000.triangles -o "$OUT/vg_bulk.html" \
     --depth_limit 4 --visualize --print_tree
-  run_case valgrind_incremental "${VG[@]}" ./bvh.out -i inputs/1000.quads -o "$OUT/vg_incremental.html" \
+  run_case valgrind_incremental "${VG[@]}" ./bvh.out -i inputs/gen_1000.quads -o "$OUT/vg_incremental.html" \
     --depth_limit 5 --incremental --visualize
-  run_case valgrind_discard_overlap "${VG[@]}" ./bvh.out -i inputs/overlap_1000.disks -o "$OUT/vg_discard.html" \
+  run_case valgrind_discard_overlap "${VG[@]}" ./bvh.out -i inputs/gen_overlap_1000.disks -o "$OUT/vg_discard.html" \
     --depth_limit 8 --incremental --discard_overlap
   run_case valgrind_generate "${VG[@]}" ./bvh.out --generate triangles 300 --seed 3 -o "$OUT/vg.triangles"
-  run_case valgrind_mixed_scene "${VG[@]}" ./bvh.out -i inputs/overlap_1000.shapes -o "$OUT/vg_mixed.html" \
+  run_case valgrind_mixed_scene "${VG[@]}" ./bvh.out -i inputs/gen_overlap_1000.shapes -o "$OUT/vg_mixed.html" \
     --depth_limit 6 --incremental --discard_overlap --visualize --print_tree --pairs
 }
 
@@ -417,9 +518,11 @@ fuzz() {
 # ---------------------------------------------------------------------------
 # 1. The build: every binary the layers run, in one make -k -j$JOBS; g++'s
 # and clang++'s builds must be free of warnings (-Wall -Wextra -pedantic).
+# (--quick: only bvh.out and make check's unit tests.) While it runs, a line
+# every $HEARTBEAT seconds says how many of its compiles have finished.
 HAVE_LIBCXX=no
 HAVE_FUZZER=no
-if have clang++; then
+if [ "$QUICK" = no ] && have clang++; then
   echo '#include <vector>
 int main() { return int(std::vector<int>(1).size()) - 1; }' | clang++ -std=c++17 -stdlib=libc++ -x c++ - \
     -o "$BUILD/libcxx-probe" >/dev/null 2>&1 && HAVE_LIBCXX=yes
@@ -427,14 +530,36 @@ int main() { return int(std::vector<int>(1).size()) - 1; }' | clang++ -std=c++17
     clang++ -x c++ -fsanitize=fuzzer - -o "$BUILD/fuzz-probe" >/dev/null 2>&1 && HAVE_FUZZER=yes
   rm -f "$BUILD/libcxx-probe" "$BUILD/fuzz-probe"
 fi
+if [ "$QUICK" = no ] && ! have clang++; then
+  skip "clang++ builds" "clang++ not installed (apt-get install clang): the libc++ build, the fuzzer and clang++'s course-framework build are skipped" |
+    tee "$RESULTS/build_notices.txt"
+fi
 targets=() # the longest compiles first, so that -j ends on short ones
-[ "$HAVE_FUZZER" = yes ] && targets+=("$BUILD/fuzz_parser")
-targets+=(test-build-gcc)
-[ "$HAVE_LIBCXX" = yes ] && targets+=(test-build-libcxx)
-echo "building: $MAKE -k -j$JOBS ${targets[*]} (log: $LOGS/build.log)"
+if [ "$QUICK" = yes ]; then
+  rm -f "$BUILD"/check/test_*.out # make runs each unit test again
+  targets+=(check-build)
+else
+  [ "$HAVE_FUZZER" = yes ] && targets+=("$BUILD/fuzz_parser")
+  targets+=(test-build-gcc)
+  [ "$HAVE_LIBCXX" = yes ] && targets+=(test-build-libcxx)
+fi
+# A compile is a recipe line that starts with a compiler (make -n lists those to do).
+compile_re="^($(printf '%s' "$CXX" | sed 's/[+.]/\\&/g')|g\+\+|clang\+\+) "
+todo=$($MAKE --no-print-directory -n -k "${targets[@]}" 2>/dev/null | grep -cE "$compile_re")
+echo "building: $MAKE -k -j$JOBS ${targets[*]}: $todo compiles to do (log: $LOGS/build.log)"
 build_start=$SECONDS
 {
-  if $MAKE --no-print-directory -k -j"$JOBS" --output-sync=target "${targets[@]}" >"$LOGS/build.log" 2>&1; then
+  $MAKE --no-print-directory -k -j"$JOBS" --output-sync=target "${targets[@]}" >"$LOGS/build.log" 2>&1 &
+  make_pid=$!
+  last=$SECONDS
+  while kill -0 "$make_pid" 2>/dev/null; do
+    sleep 1
+    if [ $((SECONDS - last)) -ge "$HEARTBEAT" ]; then
+      echo "   ... building: $(grep -cE "$compile_re" "$LOGS/build.log") of $todo compiles done ($((SECONDS - build_start)) s)"
+      last=$SECONDS
+    fi
+  done
+  if wait "$make_pid"; then
     ok "build_$((SECONDS - build_start))s"
   else
     bad build "make failed: see $LOGS/build.log"
@@ -447,25 +572,32 @@ build_start=$SECONDS
 } | tee "$RESULTS/build.txt"
 
 # 2. The layers, longest first (they run JOBS at a time).
-layer fuzz fuzz
-layer valgrind valgrind_layer
-layer sanitizers sanitizers
-layer cmake cmake_package
-layer course_framework course_framework
-layer golden golden
-layer python_model python_model
-layer unit unit_tests
-layer portable portable
-layer cli_errors cli_errors
-layer cli_output cli_output
-layer examples examples
-layer asserts asserts
-layer tsan tsan
-layer browser browser
+if [ "$QUICK" = yes ]; then
+  layer unit unit_tests_quick
+  layer golden golden
+else
+  layer fuzz fuzz
+  layer valgrind valgrind_layer
+  layer sanitizers sanitizers
+  layer cmake cmake_package
+  layer course_framework course_framework
+  layer golden golden
+  layer python_model python_model
+  layer unit unit_tests
+  layer portable portable
+  layer cli_errors cli_errors
+  layer cli_output cli_output
+  layer demo demo_layer
+  layer examples examples
+  layer asserts asserts
+  layer tsan tsan
+  layer browser browser
+fi
 finish_layers
 
 # ---------------------------------------------------------------------------
 results=("$RESULTS/build.txt")
+[ -f "$RESULTS/build_notices.txt" ] && results+=("$RESULTS/build_notices.txt")
 for ((i = 0; i < ${#LAYERS[@]}; i++)); do results+=("$RESULTS/$i.txt"); done
 passed=$(cat "${results[@]}" | awk '/^ok /{n++} /^ok-suite /{sub(/:/,"",$2); n+=$3} END{print n+0}')
 failed=$(cat "${results[@]}" | grep -c '^FAIL ')

@@ -227,6 +227,46 @@ TEST(chunked_file_reader_equals_whole_text) {
   std::remove(path.c_str());
 }
 
+// max_non_overlapping (bvh.out --generate's refusal) is a sound bound: the
+// densest regular packings that fit the canvas without touching, placed
+// through the generator's own checks (format_line, parse, collision), never
+// number more than it allows; and it is not vacuous (a real refusal).
+TEST(packing_bound_admits_dense_packings) {
+  const double pi = 3.14159265358979323846;
+  for (double r : {3.0, 10.0, 25.0, 50.0, 60.0, 120.0, 250.0, 400.0}) {
+    // Disks of radius r, hexagonal rows 2r + 0.3 apart (apart after rounding).
+    BVH<Disk> disks(8, BVH<Disk>::unlimited);
+    const double step = 2 * r + 0.3, row = step * std::sqrt(3.0) / 2;
+    long n = 0;
+    int k = 0;
+    for (double y = r + 0.1; y <= 1000 - r - 0.1; y += row, ++k)
+      for (double x = r + 0.1 + (k % 2 ? step / 2 : 0); x <= 1000 - r - 0.1; x += step)
+        n += place(format_line(Point(round_to(x, 0.1), round_to(y, 0.1)), r, Color(1, 2, 3)), true, disks);
+    CHECK(n == long(disks.size()));
+    if (double(n) > max_non_overlapping("disks", r)) note("disks r=" + std::to_string(r) + ": " + std::to_string(n));
+    CHECK(double(n) <= max_non_overlapping("disks", r));
+    // Quads: axis-aligned squares of circumradius r (side r sqrt 2) on a grid.
+    BVH<Quad> quads(8, BVH<Quad>::unlimited);
+    const double half = r / std::sqrt(2.0), qstep = 2 * half + 0.3;
+    long q = 0;
+    for (double y = r; y <= 1000 - r; y += qstep)
+      for (double x = r; x <= 1000 - r; x += qstep) {
+        Point pts[4];
+        for (int i = 0; i < 4; ++i) {
+          const double angle = pi / 4 + pi / 2 * i;
+          pts[i] = Point(round_to(x + r * std::cos(angle), 0.1), round_to(y + r * std::sin(angle), 0.1));
+        }
+        q += place(format_line(pts, 4, Color(1, 2, 3)), true, quads);
+      }
+    CHECK(double(q) <= max_non_overlapping("quads", r));
+  }
+  // The request: a million disks of radius 50-60 is refused (at most 113).
+  CHECK(max_non_overlapping("disks", 50) < 1000000);
+  CHECK(max_non_overlapping("disks", 50) >= 81); // a 9 x 9 grid of them fits
+  // Tiny sizes: no bound.
+  CHECK(max_non_overlapping("triangles", 0.05) > 1e17);
+}
+
 int main(int argc, char **argv) {
   std::cout << "seed " << base_seed() << " (set BVH_SEED to change), scale " << scale() << std::endl;
   return run_all_tests(argc, argv);

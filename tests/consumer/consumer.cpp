@@ -5,10 +5,16 @@
 #include <string>
 #include <vector>
 
-#include "bvh.h"
-#include "scene.h"
+#include <bvh/bvh.h>
+#include <bvh/scene.h>
 
 static_assert(__cplusplus >= 201703L, "bvh::bvh asks for C++17");
+// bvh::bvh puts only the folder that holds bvh/ on the include path, both
+// installed and from add_subdirectory: its headers' own names ("shapes.h",
+// "svg.h") stay free for the user's files.
+#if __has_include("shapes.h") || __has_include(<bvh.h>)
+#error "bvh::bvh exposes its headers without the bvh/ prefix"
+#endif
 
 int main(int argc, char **argv) {
   if (argc != 2) {
