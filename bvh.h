@@ -56,6 +56,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -2384,7 +2385,7 @@ template <class T> bool validate(const Core<T> &core, std::string *why) {
 //
 // Discard-overlap sampling, `for (i) if (!collides(c[i])) insert c[i]`, on
 // several threads with exactly that loop's result. (Placed after the
-// queries because it uses them; it touches Core only through section 6's
+// queries because it uses them; it changes Core only through section 6's
 // insert_shape and LeafStore's ids, as BVH::insert does.) The candidates go
 // in batches, each in three steps:
 //  1. parallel: every candidate of the batch is tested against the tree as
@@ -2392,7 +2393,7 @@ template <class T> bool validate(const Core<T> &core, std::string *why) {
 //     the tree, which nobody changes meanwhile). The tree only grows, so a
 //     candidate that hits it is rejected by the loop too; the others are the
 //     batch's survivors.
-//  2. parallel, when there are many survivors: every pair of survivors whose
+//  2. parallel when there are many survivors: every pair of survivors whose
 //     boxes (rounded outwards to float, as collides()'s are) overlap, found
 //     by a sweep along x, is tested by intersect(earlier, later), the
 //     argument order of collides().
@@ -2407,6 +2408,9 @@ template <class T> bool validate(const Core<T> &core, std::string *why) {
 // that intersect have overlapping boxes.) The batch adapts: it doubles
 // while few candidates survive the tree (the steps' fixed costs spread over
 // more) and halves while many do (step 2's pairs grow with its square).
+// The threads are started once per call (parallel_for) and wait between
+// batches (Crew), so a batch never waits for a thread to start or for one
+// the system has not yet woken.
 
 /// Step timings of insert_disjoint, for bench/bench.cpp's serial-fraction
 /// figures: compiled in only when BVH_DISJOINT_PROFILE names a function
@@ -2424,6 +2428,83 @@ struct DisjointClock {
 #else
   void lap(int) {}
 #endif
+};
+
+/// Threads kept for a run of parallel loops: one driver calls run() for
+/// each loop, the others sit in help() between loops. run(chunks, job) calls
+/// job(0) ... job(chunks - 1) on the driver and on whichever helpers are
+/// awake, returns once every call has returned, and then rethrows the first
+/// exception of any (the remaining chunks are skipped after one). A helper
+/// woken late finds the loop closed and waits for the next; finish() sends
+/// every helper home. All shared state is under the mutex but the chunk
+/// counter; a helper's writes reach the driver through the mutex (busy_).
+class Crew {
+public:
+  template <class F> void run(std::size_t chunks, F &job) {
+    {
+      std::lock_guard<std::mutex> hold(lock_);
+      call_ = [](void *f, std::size_t i) { (*static_cast<F *>(f))(i); };
+      job_ = &job;
+      chunks_ = chunks;
+      next_ = 0;
+      failed_ = false;
+      error_ = nullptr;
+      open_ = true;
+      ++generation_;
+    }
+    wake_.notify_all();
+    work();
+    std::exception_ptr error;
+    {
+      std::unique_lock<std::mutex> hold(lock_);
+      open_ = false;
+      idle_.wait(hold, [&] { return busy_ == 0; });
+      std::swap(error, error_);
+    }
+    if (error) std::rethrow_exception(error);
+  }
+  void help() {
+    std::unique_lock<std::mutex> hold(lock_);
+    for (std::size_t seen = 0;;) {
+      wake_.wait(hold, [&] { return done_ || (open_ && generation_ != seen); });
+      if (done_) return;
+      seen = generation_;
+      ++busy_;
+      hold.unlock();
+      work();
+      hold.lock();
+      if (--busy_ == 0) idle_.notify_all();
+    }
+  }
+  void finish() {
+    {
+      std::lock_guard<std::mutex> hold(lock_);
+      done_ = true;
+    }
+    wake_.notify_all();
+  }
+
+private:
+  void work() {
+    for (std::size_t i; !failed_.load(std::memory_order_relaxed) && (i = next_++) < chunks_;) {
+      try {
+        call_(job_, i);
+      } catch (...) {
+        std::lock_guard<std::mutex> hold(lock_);
+        if (!error_) error_ = std::current_exception();
+        failed_ = true;
+      }
+    }
+  }
+  std::mutex lock_;
+  std::condition_variable wake_, idle_;
+  void (*call_)(void *, std::size_t) = nullptr;
+  void *job_ = nullptr;
+  std::size_t chunks_ = 0, generation_ = 0, busy_ = 0;
+  std::atomic<std::size_t> next_{0};
+  std::atomic<bool> failed_{false};
+  std::exception_ptr error_;
+  bool open_ = false, done_ = false;
 };
 
 /// BVH::insert's id handling around insert_shape: the next id, given back
@@ -2448,11 +2529,14 @@ struct SweepBox {
 /// Step 2: the pairs (earlier, later) of survivors, by rank, that
 /// intersect, sorted by the later one. The sweep sorts the boxes by their
 /// left side; each box then meets only the boxes after it that start before
-/// its right side ends, scanned in parallel chunks.
+/// its right side ends, scanned in chunks (on the crew from kCrewSweep
+/// survivors: below, waking it costs more than it saves).
 template <class T>
 std::vector<std::pair<std::uint32_t, std::uint32_t>> surviving_pairs(const std::vector<T> &candidates,
                                                                     const std::vector<std::size_t> &survivors,
-                                                                    unsigned threads, DisjointClock &clock) {
+                                                                    Crew &crew, unsigned threads,
+                                                                    DisjointClock &clock) {
+  constexpr std::size_t kCrewSweep = 4096;
   std::vector<SweepBox> boxes(survivors.size());
   for (std::size_t r = 0; r < survivors.size(); ++r) {
     float f[4];
@@ -2468,7 +2552,7 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> surviving_pairs(const std::
   const std::size_t chunk = std::max<std::size_t>(1, std::min<std::size_t>(256, boxes.size() / (4 * threads)));
   const std::size_t chunks = (boxes.size() + chunk - 1) / chunk;
   std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> found(chunks);
-  parallel_for(chunks, threads, [&](std::size_t k) {
+  auto sweep = [&](std::size_t k) {
     const std::size_t end = std::min(boxes.size(), (k + 1) * chunk);
     for (std::size_t p = k * chunk; p < end; ++p) {
       const SweepBox &a = boxes[p];
@@ -2479,8 +2563,14 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> surviving_pairs(const std::
         if (intersect(candidates[survivors[early]], candidates[survivors[late]])) found[k].push_back({early, late});
       }
     }
-  });
-  clock.lap(2);
+  };
+  if (boxes.size() >= kCrewSweep) {
+    crew.run(chunks, sweep);
+    clock.lap(2);
+  } else {
+    for (std::size_t k = 0; k < chunks; ++k) sweep(k);
+    clock.lap(0);
+  }
   std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
   for (const auto &v : found) pairs.insert(pairs.end(), v.begin(), v.end());
   std::sort(pairs.begin(), pairs.end(), [](const std::pair<std::uint32_t, std::uint32_t> &a,
@@ -2490,27 +2580,11 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> surviving_pairs(const std::
   return pairs;
 }
 
-/// Inserts, in order, each candidate that intersects no stored shape and no
-/// candidate inserted before it, as the loop above does, on `threads`
-/// threads (0: the hardware's; 1: the loop itself). Returns the indices of
-/// those inserted, ascending. If a worker or an insertion throws, the first
-/// exception is rethrown and the tree holds what the loop holds after
-/// candidates [0, k), with k the first candidate of the batch in progress
-/// (a throw in step 1 or 2) or the candidate being decided (step 3, and
-/// with 1 thread).
+/// The batches of insert_disjoint (run by the crew's driver).
 template <class T>
-std::vector<std::size_t> insert_disjoint(Core<T> &core, const std::vector<T> &candidates, unsigned threads) {
-  std::vector<std::size_t> kept;
+void insert_disjoint_batches(Core<T> &core, const std::vector<T> &candidates, unsigned threads, Crew &crew,
+                             std::vector<std::size_t> &kept) {
   const std::size_t n = candidates.size();
-  threads = threads_for(threads);
-  if (threads == 1) {
-    for (std::size_t i = 0; i < n; ++i)
-      if (!collides(core, candidates[i])) {
-        insert_new(core, candidates[i]);
-        kept.push_back(i);
-      }
-    return kept;
-  }
   // Batch sizes: starting small (on an empty tree all of the first batch
   // survives), within [kMin, kMax]; step 2 runs from kPairwise survivors.
   const std::size_t kMin = 64 * std::size_t(threads), kMax = std::size_t(1) << 17, kPairwise = 32;
@@ -2524,11 +2598,12 @@ std::vector<std::size_t> insert_disjoint(Core<T> &core, const std::vector<T> &ca
     const std::size_t m = std::min(batch, n - start);
     // 1. Against the tree as it stands (read only).
     hit.assign(m, 0);
-    const std::size_t chunk = std::max<std::size_t>(1, std::min<std::size_t>(256, m / (4 * threads)));
-    parallel_for((m + chunk - 1) / chunk, threads, [&](std::size_t k) {
+    const std::size_t chunk = std::max<std::size_t>(1, std::min<std::size_t>(128, m / (4 * threads)));
+    auto query = [&](std::size_t k) {
       const std::size_t end = std::min(m, (k + 1) * chunk);
       for (std::size_t j = k * chunk; j < end; ++j) hit[j] = collides(core, candidates[start + j]) ? 1 : 0;
-    });
+    };
+    crew.run((m + chunk - 1) / chunk, query);
     clock.lap(1);
     survivors.clear();
     for (std::size_t j = 0; j < m; ++j)
@@ -2558,7 +2633,7 @@ std::vector<std::size_t> insert_disjoint(Core<T> &core, const std::vector<T> &ca
         kept.push_back(survivors[r]);
       }
     } else {
-      const auto pairs = surviving_pairs(candidates, survivors, threads, clock);
+      const auto pairs = surviving_pairs(candidates, survivors, crew, threads, clock);
       std::size_t p = 0;
       for (std::uint32_t r = 0; r < s; ++r) {
         bool free = true;
@@ -2574,6 +2649,44 @@ std::vector<std::size_t> insert_disjoint(Core<T> &core, const std::vector<T> &ca
     if (2 * s < target) batch = std::min(kMax, 2 * batch);
     else if (s > 2 * target) batch = std::max(kMin, batch / 2);
   }
+}
+
+/// Inserts, in order, each candidate that intersects no stored shape and no
+/// candidate inserted before it, as the loop above does, on `threads`
+/// threads (0: the hardware's; 1: the loop itself). Returns the indices of
+/// those inserted, ascending. If a worker or an insertion throws, the first
+/// exception is rethrown and the tree holds what the loop holds after
+/// candidates [0, k), with k the first candidate of the batch in progress
+/// (a throw in step 1 or 2) or the candidate being decided (step 3, and
+/// with 1 thread).
+template <class T>
+std::vector<std::size_t> insert_disjoint(Core<T> &core, const std::vector<T> &candidates, unsigned threads) {
+  std::vector<std::size_t> kept;
+  threads = threads_for(threads);
+  if (threads == 1 || candidates.empty()) {
+    for (std::size_t i = 0; i < candidates.size(); ++i)
+      if (!collides(core, candidates[i])) {
+        insert_new(core, candidates[i]);
+        kept.push_back(i);
+      }
+    return kept;
+  }
+  // The first thread to arrive drives, the others help until it is done
+  // (also when it throws). If threads cannot be started, parallel_for runs
+  // the driver alone and then the helpers, which find it done.
+  Crew crew;
+  std::atomic<bool> driving{false};
+  parallel_for(threads, threads, [&](std::size_t) {
+    if (driving.exchange(true)) {
+      crew.help();
+      return;
+    }
+    struct Finish {
+      Crew &crew;
+      ~Finish() { crew.finish(); }
+    } finish{crew};
+    insert_disjoint_batches(core, candidates, threads, crew, kept);
+  });
   return kept;
 }
 

@@ -37,9 +37,24 @@
 
 // insert_disjoint's step timings (bvh.h section 8b): the serial fraction
 // that ours-par prints (steps 1 and 2 parallel, 3 and 0 serial).
+// Each step's wall seconds (bvh.h's) and the process's CPU seconds in it
+// (all threads: the work, which a loaded machine inflates less than the
+// wall time).
+#include <ctime>
 namespace bench_profile {
-inline double step_seconds[4] = {0, 0, 0, 0};
-inline void add(int step, double seconds) { step_seconds[step] += seconds; }
+inline double step_seconds[4] = {0, 0, 0, 0}, step_cpu[4] = {0, 0, 0, 0};
+inline double cpu_now() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+inline double cpu_last = 0;
+inline void add(int step, double seconds) {
+  const double now = cpu_now();
+  step_seconds[step] += seconds;
+  step_cpu[step] += now - cpu_last;
+  cpu_last = now;
+}
 } // namespace bench_profile
 #define BVH_DISJOINT_PROFILE bench_profile::add
 
@@ -169,8 +184,10 @@ template <class T> Outcome discard_ours(const std::vector<T> &c, int depth_limit
 /// and the survivors' pair tests; serial: the rest, mostly the insertions).
 template <class T> Outcome discard_ours_par(const std::vector<T> &c, unsigned threads) {
   for (double &s : bench_profile::step_seconds) s = 0;
+  for (double &s : bench_profile::step_cpu) s = 0;
   Outcome o;
   Timer timer;
+  bench_profile::cpu_last = bench_profile::cpu_now();
   BVH<T> tree(4, 0);
   const std::vector<std::size_t> kept = tree.insert_disjoint(c, threads);
   o.seconds = timer.stop();
@@ -181,7 +198,10 @@ template <class T> Outcome discard_ours_par(const std::vector<T> &c, unsigned th
     std::cerr << "bench: insert_disjoint(" << threads << "): steps 1 (queries) " << fmt("%.4f", t[1])
               << " s, 2 (pairs) " << fmt("%.4f", t[2]) << " s, 3 (inserts) " << fmt("%.4f", t[3])
               << " s, other serial " << fmt("%.4f", t[0]) << " s; serial fraction of the wall time "
-              << fmt("%.3f", serial / (serial + parallel)) << "\n";
+              << fmt("%.3f", serial / (serial + parallel)) << "; CPU seconds, all threads: steps 1 "
+              << fmt("%.4f", bench_profile::step_cpu[1]) << ", 2 " << fmt("%.4f", bench_profile::step_cpu[2])
+              << ", 3 " << fmt("%.4f", bench_profile::step_cpu[3]) << ", other " << fmt("%.4f", bench_profile::step_cpu[0])
+              << "\n";
   return o;
 }
 
