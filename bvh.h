@@ -44,6 +44,8 @@
 //                     of overlapping(), the best-first engine (nearest(p),
 //                     nearest(p, k), first_hit), all pairs
 //   8. Diagnostics    the course's statistics report, its picture, validate
+//   8b. Disjoint      insert_disjoint: discard-overlap sampling on several
+//                     threads, exactly the sequential loop's tree
 //   9. BVH<T>         the public facade: each member a few lines over 2-8
 // The intersection predicates are the free intersect() of the shape type,
 // found by argument-dependent lookup (this project's exact ones are in

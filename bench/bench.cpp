@@ -674,7 +674,10 @@ struct Workload {
   bool sweep = false;
 };
 
-bool method_selected(const Options &opt, const std::string &m) { return opt.method.empty() || opt.method == m; }
+/// --method NAME, or several: NAME,NAME,...
+bool method_selected(const Options &opt, const std::string &m) {
+  return opt.method.empty() || ("," + opt.method + ",").find("," + m + ",") != std::string::npos;
+}
 
 long brute_limit(const Options &opt) { return opt.quick ? 30000 : 100000; }
 
@@ -1003,7 +1006,7 @@ void usage() {
                "                    (default 5, 3 for the 1M workloads, 1 with --only)\n"
                "  --only WORKLOAD   one workload: W1 W2 W3 tri quad S1000 ... S1000000\n"
                "                    (implies --in-process; no files are written)\n"
-               "  --method NAME     one method: ours ours-1t ours-d8 ours-par ours-par1 brute boost-quad16 boost-rstar16 box2d grid\n"
+               "  --method NAME     one method (or several: NAME,NAME): ours ours-1t ours-d8 ours-par ours-par1 brute boost-quad16 boost-rstar16 box2d grid\n"
                "  --big N           N candidates in W1, W2 and W3 instead of 1M (the 10M scaling point:\n"
                "                    --big 10000000 --only W2 --method ours, then boost-quad16, grid)\n"
                "  --in-process      no fork per run (for valgrind/perf); peak RSS is then cumulative\n"
