@@ -83,6 +83,7 @@ inline void add(int step, double seconds) {
 #include <random>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "peers.h"
@@ -188,10 +189,12 @@ template <class T> Outcome discard_ours_par(const std::vector<T> &c, unsigned th
   Outcome o;
   Timer timer;
   bench_profile::cpu_last = bench_profile::cpu_now();
+  const double cpu_start = bench_profile::cpu_last;
   BVH<T> tree(4, 0);
   const std::vector<std::size_t> kept = tree.insert_disjoint(c, threads);
   o.seconds = timer.stop();
   o.ids.assign(kept.begin(), kept.end());
+  const double cpu = bench_profile::cpu_now() - cpu_start;
   const double *t = bench_profile::step_seconds;
   const double serial = t[0] + t[3], parallel = t[1] + t[2];
   if (serial + parallel > 0)
@@ -201,8 +204,36 @@ template <class T> Outcome discard_ours_par(const std::vector<T> &c, unsigned th
               << fmt("%.3f", serial / (serial + parallel)) << "; CPU seconds, all threads: steps 1 "
               << fmt("%.4f", bench_profile::step_cpu[1]) << ", 2 " << fmt("%.4f", bench_profile::step_cpu[2])
               << ", 3 " << fmt("%.4f", bench_profile::step_cpu[3]) << ", other " << fmt("%.4f", bench_profile::step_cpu[0])
-              << "\n";
+              << "; whole call: " << fmt("%.4f", o.seconds) << " s wall, " << fmt("%.4f", cpu) << " s CPU\n";
+  if (serial + parallel <= 0)
+    std::cerr << "bench: insert_disjoint(" << threads << "): " << fmt("%.4f", o.seconds) << " s wall, "
+              << fmt("%.4f", cpu) << " s CPU\n";
   return o;
+}
+
+/// What this machine lends a parallel loop right now: a spin loop's work
+/// on every core against the same work on one, in wall time (2.0 on an idle
+/// 2-core machine; about 1.0 when other processes hold the cores).
+double available_parallelism() {
+  const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+  auto spin = [](long n) {
+    volatile long sink = 0;
+    long s = 0;
+    for (long i = 0; i < n; ++i) s += i ^ (s >> 3);
+    sink = s;
+    (void)sink;
+  };
+  const long total = 400000000;
+  const auto t0 = Clock::now();
+  spin(total);
+  const double one = seconds_since(t0);
+  const auto t1 = Clock::now();
+  std::vector<std::thread> pool;
+  for (unsigned k = 1; k < threads; ++k) pool.emplace_back(spin, total / long(threads));
+  spin(total / long(threads));
+  for (std::thread &t : pool) t.join();
+  const double all = seconds_since(t1);
+  return all > 0 ? one / all : 0;
 }
 
 /// `threads`: construct()'s build threads (0: its default, hardware concurrency).
@@ -1082,6 +1113,14 @@ int main(int argc, char **argv) {
       rep.notes.push_back(m.missing);
       std::cout << m.missing << "\n";
     }
+
+  if (method_selected(opt, "ours-par") && !opt.method.empty()) {
+    const std::string line = "available parallelism (bench's spin loop on " +
+                             std::to_string(std::max(1u, std::thread::hardware_concurrency())) +
+                             " threads against 1, wall time): " + fmt("%.2f", available_parallelism()) + "x";
+    std::cout << line << "\n";
+    rep.notes.push_back(line);
+  }
 
   // W1 and the sweep (prefixes of W1's scene).
   std::vector<std::string> sweep_titles;
