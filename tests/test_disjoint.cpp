@@ -162,6 +162,20 @@ TEST(disjoint_batches_adapt_and_stay_exact) {
                      "BVH_SEED=" + std::to_string(seed) + " sparse, dense, sparse");
 }
 
+// A long run of rejected candidates (they fall on one big disk) grows the
+// batch to its largest; then tens of thousands survive the tree at once and
+// meet each other in one batch: step 2's sweep runs on every thread (from
+// 4,096 survivors), also in the scaled-down runs (ThreadSanitizer's).
+TEST(disjoint_one_huge_batch_of_survivors) {
+  const unsigned seed = base_seed() + 470;
+  Maker make(seed);
+  std::vector<Disk> c;
+  for (int i = 0; i < 60000; ++i) c.push_back(Disk(Point(make.coord(150, 350), make.coord(400, 600)), make.coord(0, 3)));
+  for (int i = 0; i < 30000; ++i) c.push_back(Disk(Point(make.coord(520, 1000), make.coord(0, 1000)), make.coord(0, 1.2)));
+  check_against_loop(std::vector<Disk>{Disk(Point(250, 500), 240)}, Start::inserted, c, 4, BVH<Disk>::unlimited,
+                     "BVH_SEED=" + std::to_string(seed) + " one huge batch");
+}
+
 TEST(disjoint_on_tiny_and_empty_inputs) {
   const unsigned seed = base_seed() + 520;
   Maker make(seed);
