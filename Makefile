@@ -10,7 +10,7 @@ BUILD ?= build
 HEADERS := bvh.h shapes.h intersect.h distance.h svg.h scene.h
 # Parallel jobs of make test's build (and of tests/run.sh's layers).
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
-UNITS := bvh intersect dynamic moving parse threads names
+UNITS := bvh intersect dynamic moving parse threads names disjoint
 TESTS := $(UNITS:%=$(BUILD)/test_%)
 # test_bvh once more with collision()'s scalar fallback instead of SSE2.
 SCALAR_TESTS := $(BUILD)/test_bvh_scalar
@@ -28,7 +28,7 @@ LIBCXX_TESTS := $(UNITS:%=$(BUILD)/test_%_libcxx)
 # BVH_ASSERT's misuse checks: on (the default build), off (-DNDEBUG), and a
 # user's own handler that throws; construct()'s threads under ThreadSanitizer.
 ASSERT_TESTS := $(BUILD)/test_asserts $(BUILD)/test_asserts_ndebug $(BUILD)/test_asserts_throwing
-TSAN_TESTS := $(BUILD)/test_threads_tsan
+TSAN_TESTS := $(BUILD)/test_threads_tsan $(BUILD)/test_disjoint_tsan
 # examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
@@ -63,7 +63,7 @@ $(BUILD)/test_asserts_ndebug: tests/test_asserts.cpp $(HEADERS) | $(BUILD)
 $(BUILD)/test_asserts_throwing: tests/test_asserts.cpp $(HEADERS) | $(BUILD)
 	$(CXX) $(CXXFLAGS) -DBVH_TEST_THROWING_ASSERT -I. $< -o $@
 
-$(BUILD)/test_threads_tsan: tests/test_threads.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+$(BUILD)/test_%_tsan: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) -std=c++17 -O1 -g -Wall -Wextra -pedantic -fsanitize=thread -I. -Itests $< -o $@
 
 $(BUILD)/example_%: examples/%.cpp $(HEADERS) | $(BUILD)

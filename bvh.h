@@ -44,6 +44,8 @@
 //                     of overlapping(), the best-first engine (nearest(p),
 //                     nearest(p, k), first_hit), all pairs
 //   8. Diagnostics    the course's statistics report, its picture, validate
+//   8b. Disjoint      insert_disjoint: discard-overlap sampling on several
+//                     threads, exactly the sequential loop's tree
 //   9. BVH<T>         the public facade: each member a few lines over 2-8
 // The intersection predicates are the free intersect() of the shape type,
 // found by argument-dependent lookup (this project's exact ones are in
@@ -54,7 +56,9 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -2445,6 +2449,317 @@ template <class T, class Tr> bool validate(const Core<T, Tr> &core, std::string 
   return true;
 }
 
+// ===========================================================================
+// 8b. Disjoint insertion: insert_disjoint, a change built on the queries
+// ===========================================================================
+//
+// Discard-overlap sampling, `for (i) if (!collides(c[i])) insert c[i]`, on
+// several threads with exactly that loop's result. (Placed after the
+// queries because it uses them; it changes Core only through section 6's
+// insert_shape and LeafStore's ids, as BVH::insert does.) The candidates go
+// in batches, each in three steps:
+//  1. parallel: every candidate of the batch is tested against the tree as
+//     it stood at the batch's start (collides() is const: the workers share
+//     the tree, which nobody changes meanwhile). The tree only grows, so a
+//     candidate that hits it is rejected by the loop too; the others are the
+//     batch's survivors.
+//  2. parallel when there are many survivors: every pair of survivors whose
+//     boxes (rounded outwards to float, as collides()'s are) overlap, found
+//     by a sweep along x, is tested by intersect(earlier, later), the
+//     argument order of collides().
+//  3. serial, in input order: a survivor is kept iff no earlier kept
+//     survivor of the batch intersects it (step 2's pairs, or with few
+//     survivors a direct box-then-intersect test), and a kept one is
+//     inserted (insert_shape, with its id taken as BVH::insert takes it).
+// A survivor misses the tree as it was at the batch's start, and since then
+// only the batch's earlier kept survivors were added: step 3 decides what
+// the loop decides, and the insert_shape calls, their ids and their order
+// are the loop's. (This relies on what collides() itself relies on: shapes
+// that intersect have overlapping boxes.) The batch adapts: it doubles
+// while few candidates survive the tree (the steps' fixed costs spread over
+// more) and halves while many do (step 2's pairs grow with its square).
+// The threads are started once per call (parallel_for) and wait between
+// batches (Crew), so a batch never waits for a thread to start or for one
+// the system has not yet woken.
+
+/// Step timings of insert_disjoint, for bench/bench.cpp's serial-fraction
+/// figures: compiled in only when BVH_DISJOINT_PROFILE names a function
+/// void(int step, double seconds) declared before bvh.h (step 1 and 2: the
+/// parallel steps, 3: the serial one, 0: the rest, i.e. gathering
+/// survivors and the sweep's sort).
+struct DisjointClock {
+#ifdef BVH_DISJOINT_PROFILE
+  std::chrono::steady_clock::time_point last = std::chrono::steady_clock::now();
+  void lap(int step) {
+    const auto now = std::chrono::steady_clock::now();
+    BVH_DISJOINT_PROFILE(step, std::chrono::duration<double>(now - last).count());
+    last = now;
+  }
+#else
+  void lap(int) {}
+#endif
+};
+
+/// Threads kept for a run of parallel loops: one driver calls run() for
+/// each loop, the others sit in help() between loops. run(chunks, job) calls
+/// job(0) ... job(chunks - 1) on the driver and on whichever helpers are
+/// awake, returns once every call has returned, and then rethrows the first
+/// exception of any (the remaining chunks are skipped after one). A helper
+/// woken late finds the loop closed and waits for the next; finish() sends
+/// every helper home. All shared state is under the mutex but the chunk
+/// counter; a helper's writes reach the driver through the mutex (busy_).
+class Crew {
+public:
+  template <class F> void run(std::size_t chunks, F &job) {
+    {
+      std::lock_guard<std::mutex> hold(lock_);
+      call_ = [](void *f, std::size_t i) { (*static_cast<F *>(f))(i); };
+      job_ = &job;
+      chunks_ = chunks;
+      next_ = 0;
+      failed_ = false;
+      error_ = nullptr;
+      open_ = true;
+      ++generation_;
+    }
+    wake_.notify_all();
+    work();
+    std::exception_ptr error;
+    {
+      std::unique_lock<std::mutex> hold(lock_);
+      open_ = false;
+      idle_.wait(hold, [&] { return busy_ == 0; });
+      std::swap(error, error_);
+    }
+    if (error) std::rethrow_exception(error);
+  }
+  void help() {
+    std::unique_lock<std::mutex> hold(lock_);
+    for (std::size_t seen = 0;;) {
+      wake_.wait(hold, [&] { return done_ || (open_ && generation_ != seen); });
+      if (done_) return;
+      seen = generation_;
+      ++busy_;
+      hold.unlock();
+      work();
+      hold.lock();
+      if (--busy_ == 0) idle_.notify_all();
+    }
+  }
+  void finish() {
+    {
+      std::lock_guard<std::mutex> hold(lock_);
+      done_ = true;
+    }
+    wake_.notify_all();
+  }
+
+private:
+  void work() {
+    for (std::size_t i; !failed_.load(std::memory_order_relaxed) && (i = next_++) < chunks_;) {
+      try {
+        call_(job_, i);
+      } catch (...) {
+        std::lock_guard<std::mutex> hold(lock_);
+        if (!error_) error_ = std::current_exception();
+        failed_ = true;
+      }
+    }
+  }
+  std::mutex lock_;
+  std::condition_variable wake_, idle_;
+  void (*call_)(void *, std::size_t) = nullptr;
+  void *job_ = nullptr;
+  std::size_t chunks_ = 0, generation_ = 0, busy_ = 0;
+  std::atomic<std::size_t> next_{0};
+  std::atomic<bool> failed_{false};
+  std::exception_ptr error_;
+  bool open_ = false, done_ = false;
+};
+
+/// BVH::insert's id handling around insert_shape: the next id, given back
+/// if the insertion throws.
+template <class T, class Tr> void insert_new(Core<T, Tr> &core, const T &shape) {
+  const std::uint32_t id = core.leaves.new_id();
+  try {
+    insert_shape(core, shape, id);
+  } catch (...) {
+    core.leaves.free_id(id, core.size == 0);
+    throw;
+  }
+}
+
+/// A survivor of step 1 for step 2's sweep: its box rounded outwards to
+/// float and its rank among the batch's survivors.
+struct SweepBox {
+  float lo_x, lo_y, hi_x, hi_y;
+  std::uint32_t rank;
+};
+
+/// Step 2: the pairs (earlier, later) of survivors, by rank, that
+/// intersect, sorted by the later one. The sweep sorts the boxes by their
+/// left side; each box then meets only the boxes after it that start before
+/// its right side ends, scanned in chunks (on the crew from kCrewSweep
+/// survivors: below, waking it costs more than it saves).
+template <class T, class Tr>
+std::vector<std::pair<std::uint32_t, std::uint32_t>> surviving_pairs(const Tr &traits, const std::vector<T> &candidates,
+                                                                    const std::vector<std::size_t> &survivors,
+                                                                    Crew &crew, unsigned threads,
+                                                                    DisjointClock &clock) {
+  constexpr std::size_t kCrewSweep = 4096;
+  std::vector<SweepBox> boxes(survivors.size());
+  for (std::size_t r = 0; r < survivors.size(); ++r) {
+    float f[4];
+    round_out(box_of(traits, candidates[survivors[r]]), f);
+    // A NaN side sorts first; it overlaps nothing, as in collides().
+    if (!(f[0] == f[0])) f[0] = -std::numeric_limits<float>::infinity();
+    boxes[r] = SweepBox{f[0], f[1], f[2], f[3], std::uint32_t(r)};
+  }
+  std::sort(boxes.begin(), boxes.end(), [](const SweepBox &a, const SweepBox &b) {
+    return a.lo_x < b.lo_x || (a.lo_x == b.lo_x && a.rank < b.rank);
+  });
+  clock.lap(0);
+  const std::size_t chunk = std::max<std::size_t>(1, std::min<std::size_t>(256, boxes.size() / (4 * threads)));
+  const std::size_t chunks = (boxes.size() + chunk - 1) / chunk;
+  std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> found(chunks);
+  auto sweep = [&](std::size_t k) {
+    const std::size_t end = std::min(boxes.size(), (k + 1) * chunk);
+    for (std::size_t p = k * chunk; p < end; ++p) {
+      const SweepBox &a = boxes[p];
+      for (std::size_t q = p + 1; q < boxes.size() && boxes[q].lo_x <= a.hi_x; ++q) {
+        const SweepBox &b = boxes[q];
+        if (!(a.lo_y <= b.hi_y && b.lo_y <= a.hi_y && b.lo_x <= a.hi_x && a.lo_x <= b.hi_x)) continue;
+        const std::uint32_t early = std::min(a.rank, b.rank), late = std::max(a.rank, b.rank);
+        if (traits.intersect(candidates[survivors[early]], candidates[survivors[late]])) found[k].push_back({early, late});
+      }
+    }
+  };
+  if (boxes.size() >= kCrewSweep) {
+    crew.run(chunks, sweep);
+    clock.lap(2);
+  } else {
+    for (std::size_t k = 0; k < chunks; ++k) sweep(k);
+    clock.lap(0);
+  }
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+  for (const auto &v : found) pairs.insert(pairs.end(), v.begin(), v.end());
+  std::sort(pairs.begin(), pairs.end(), [](const std::pair<std::uint32_t, std::uint32_t> &a,
+                                           const std::pair<std::uint32_t, std::uint32_t> &b) {
+    return a.second < b.second || (a.second == b.second && a.first < b.first);
+  });
+  return pairs;
+}
+
+/// The batches of insert_disjoint (run by the crew's driver).
+template <class T, class Tr>
+void insert_disjoint_batches(Core<T, Tr> &core, const std::vector<T> &candidates, unsigned threads, Crew &crew,
+                             std::vector<std::size_t> &kept) {
+  const std::size_t n = candidates.size();
+  // Batch sizes: starting small (on an empty tree all of the first batch
+  // survives), within [kMin, kMax]; step 2 runs from kPairwise survivors.
+  const std::size_t kMin = 64 * std::size_t(threads), kMax = std::size_t(1) << 17, kPairwise = 32;
+  const std::size_t target = 2048 * std::size_t(threads); // survivors a batch aims at
+  std::size_t batch = kMin;
+  std::vector<unsigned char> hit;
+  std::vector<std::size_t> survivors, batch_kept;
+  std::vector<unsigned char> survivor_kept;
+  DisjointClock clock;
+  for (std::size_t start = 0; start < n;) {
+    const std::size_t m = std::min(batch, n - start);
+    // 1. Against the tree as it stands (read only).
+    hit.assign(m, 0);
+    const std::size_t chunk = std::max<std::size_t>(1, std::min<std::size_t>(128, m / (4 * threads)));
+    auto query = [&](std::size_t k) {
+      const std::size_t end = std::min(m, (k + 1) * chunk);
+      for (std::size_t j = k * chunk; j < end; ++j) hit[j] = collides(core, candidates[start + j]) ? 1 : 0;
+    };
+    crew.run((m + chunk - 1) / chunk, query);
+    clock.lap(1);
+    survivors.clear();
+    for (std::size_t j = 0; j < m; ++j)
+      if (!hit[j]) survivors.push_back(start + j);
+    const std::size_t s = survivors.size();
+    // 2. and 3. Among themselves, in input order, and inserted.
+    survivor_kept.assign(s, 0);
+    if (s < kPairwise) {
+      clock.lap(0);
+      batch_kept.clear();
+      for (std::size_t r = 0; r < s; ++r) {
+        const T &c = candidates[survivors[r]];
+        float f[4];
+        round_out(box_of(core.traits, c), f);
+        bool free = true;
+        for (std::size_t i : batch_kept) {
+          float g[4];
+          round_out(box_of(core.traits, candidates[i]), g);
+          if (g[0] <= f[2] && f[0] <= g[2] && g[1] <= f[3] && f[1] <= g[3] && core.traits.intersect(candidates[i], c)) {
+            free = false;
+            break;
+          }
+        }
+        if (!free) continue;
+        insert_new(core, c);
+        batch_kept.push_back(survivors[r]);
+        kept.push_back(survivors[r]);
+      }
+    } else {
+      const auto pairs = surviving_pairs(core.traits, candidates, survivors, crew, threads, clock);
+      std::size_t p = 0;
+      for (std::uint32_t r = 0; r < s; ++r) {
+        bool free = true;
+        for (; p < pairs.size() && pairs[p].second == r; ++p) free = free && !survivor_kept[pairs[p].first];
+        if (!free) continue;
+        insert_new(core, candidates[survivors[r]]);
+        survivor_kept[r] = 1;
+        kept.push_back(survivors[r]);
+      }
+    }
+    clock.lap(3);
+    start += m;
+    if (2 * s < target) batch = std::min(kMax, 2 * batch);
+    else if (s > 2 * target) batch = std::max(kMin, batch / 2);
+  }
+}
+
+/// Inserts, in order, each candidate that intersects no stored shape and no
+/// candidate inserted before it, as the loop above does, on `threads`
+/// threads (0: the hardware's; 1: the loop itself). Returns the indices of
+/// those inserted, ascending. If a worker or an insertion throws, the first
+/// exception is rethrown and the tree holds what the loop holds after
+/// candidates [0, k), with k the first candidate of the batch in progress
+/// (a throw in step 1 or 2) or the candidate being decided (step 3, and
+/// with 1 thread).
+template <class T, class Tr>
+std::vector<std::size_t> insert_disjoint(Core<T, Tr> &core, const std::vector<T> &candidates, unsigned threads) {
+  std::vector<std::size_t> kept;
+  threads = threads_for(threads);
+  if (threads == 1 || candidates.empty()) {
+    for (std::size_t i = 0; i < candidates.size(); ++i)
+      if (!collides(core, candidates[i])) {
+        insert_new(core, candidates[i]);
+        kept.push_back(i);
+      }
+    return kept;
+  }
+  // The first thread to arrive drives, the others help until it is done
+  // (also when it throws). If threads cannot be started, parallel_for runs
+  // the driver alone and then the helpers, which find it done.
+  Crew crew;
+  std::atomic<bool> driving{false};
+  parallel_for(threads, threads, [&](std::size_t) {
+    if (driving.exchange(true)) {
+      crew.help();
+      return;
+    }
+    struct Finish {
+      Crew &crew;
+      ~Finish() { crew.finish(); }
+    } finish{crew};
+    insert_disjoint_batches(core, candidates, threads, crew, kept);
+  });
+  return kept;
+}
+
 } // namespace detail
 
 // ===========================================================================
@@ -2656,6 +2971,24 @@ public:
       throw;
     }
     return handle{id};
+  }
+
+  /// Discard-overlap (Poisson-disk) sampling on `threads` threads (0, the
+  /// default: std::thread::hardware_concurrency(); 1: no other thread):
+  /// does exactly what `for (i) if (!collision(c[i])) insert(c[i]);` does,
+  /// and returns the indices of the candidates inserted, ascending. The tree
+  /// is then the one that loop builds, whatever the thread count: the same
+  /// insertions with the same handles in the same order, hence the same
+  /// iteration order and statistics. The candidates are tested in batches
+  /// against the tree as it stood at each batch's start, in parallel, then
+  /// among themselves (detail::insert_disjoint). An exception from
+  /// intersect() (which may be called on pairs the loop would not compare)
+  /// or from an allocation reaches the caller as itself; the tree is then
+  /// valid and holds what the loop holds after some first k candidates: k
+  /// is the first candidate of the batch in progress, or the candidate whose
+  /// insertion threw (with threads = 1: the candidate being decided).
+  std::vector<std::size_t> insert_disjoint(const std::vector<T> &candidates, unsigned threads = 0) {
+    return detail::insert_disjoint(core_, candidates, threads);
   }
 
   /// True when `h` names a stored shape.

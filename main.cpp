@@ -46,7 +46,7 @@ namespace {
 const char *const kUsage =
     "usage: bvh.out -i SCENE (-o PICTURE.html | --no_output) [--split_threshold K]\n"
     "               [--depth_limit D] [--incremental [--discard_overlap]] [--visualize]\n"
-    "               [--print_tree] [--pairs] [--build course|sah]\n"
+    "               [--print_tree] [--pairs] [--build course|sah] [--threads N]\n"
     "       bvh.out --generate disks|triangles|quads|shapes COUNT -o SCENE [--seed S]\n"
     "               [--size MIN:MAX] [--overlap]\n"
     "       bvh.out --help\n";
@@ -70,6 +70,8 @@ const char *const kHelp =
     "  --print_tree             with the statistics, list every node and its shapes\n"
     "  --build course|sah       how nodes are cut: the course's rule (default), or the\n"
     "                           binned surface area heuristic (also for insert's splits)\n"
+    "  --threads N              threads for the bulk build and the sampling (1 to 1024;\n"
+    "                           default: all cores); the output is the same for every N\n"
     "  --pairs                  print 'overlapping pairs: N', the number of pairs of shapes\n"
     "                           in the tree that intersect (after the statistics, if any)\n"
     "  --generate KIND COUNT    write COUNT random shapes of KIND (disks, triangles, quads,\n"
@@ -293,6 +295,7 @@ struct Options {
   bool incremental = false, discard_overlap = false, visualize = false, print_tree = false, pairs = false;
   bool no_output = false; // --no_output: no picture
   bool sah = false; // --build sah
+  unsigned threads = 0; // --threads N (0: all cores)
   bool generate = false, overlap = false;
   std::string kind;
   long count = 0;
@@ -314,15 +317,32 @@ template <class T> int run(const Options &o) {
   }
   BVH<T> tree(o.split_threshold, o.depth_limit);
   if (o.sah) tree.set_build_rule(BVH<T>::BuildRule::sah);
+  tree.set_build_threads(o.threads);
   if (!o.incremental) {
     progress.stage("building the tree of " + std::to_string(shapes.size()) + " shapes");
     tree.construct(shapes);
   } else {
     progress.stage(o.discard_overlap ? "sampling" : "inserting", shapes.size(), "shapes");
     std::uint64_t done = 0;
-    for (const T &s : shapes) {
-      if (!o.discard_overlap || !tree.collision(s)) tree.insert(s);
-      progress.advance(++done);
+    if (o.discard_overlap) {
+      // insert_disjoint: the loop "insert unless it touches a kept one" on
+      // every core, with exactly the loop's tree. In parts of kPart
+      // candidates (each call is that loop too), for the progress line.
+      const std::size_t kPart = std::size_t(1) << 18;
+      for (std::size_t at = 0; at < shapes.size(); at += kPart) {
+        const std::size_t end = std::min(shapes.size(), at + kPart);
+        if (at == 0 && end == shapes.size()) {
+          tree.insert_disjoint(shapes, o.threads);
+        } else {
+          tree.insert_disjoint(std::vector<T>(shapes.begin() + long(at), shapes.begin() + long(end)), o.threads);
+        }
+        progress.advance(done = end);
+      }
+    } else {
+      for (const T &s : shapes) {
+        tree.insert(s);
+        progress.advance(++done);
+      }
     }
   }
   progress.pause();
@@ -371,7 +391,7 @@ std::string option_name(const std::string &arg) {
   static const char *const names[] = {"--input", "--output", "--split_threshold", "--depth_limit",
                                       "--incremental", "--discard_overlap", "--visualize", "--print_tree",
                                       "--generate", "--seed", "--size", "--overlap", "--pairs", "--build",
-                                      "--no_output"};
+                                      "--no_output", "--threads"};
   if (arg == "-i") return "--input";
   if (arg == "-o") return "--output";
   for (const char *name : names)
@@ -458,6 +478,8 @@ Options parse_options(int argc, char **argv) {
       o.pairs = true;
     } else if (name == "--no_output") {
       o.no_output = true;
+    } else if (name == "--threads") {
+      o.threads = unsigned(parse_integer(arg, value(), 1, 1024));
     } else if (name == "--build") {
       const std::string rule = value();
       if (rule != "course" && rule != "sah") throw UsageError{"--build needs course or sah, not '" + rule + "'"};

@@ -35,6 +35,29 @@
 // otherwise the run prints "skipped NAME: apt-get install PACKAGE". To see
 // that path with the peers installed, add -DBENCH_NO_BOOST / -DBENCH_NO_BOX2D.
 
+// insert_disjoint's step timings (bvh.h section 8b): the serial fraction
+// that ours-par prints (steps 1 and 2 parallel, 3 and 0 serial).
+// Each step's wall seconds (bvh.h's) and the process's CPU seconds in it
+// (all threads: the work, which a loaded machine inflates less than the
+// wall time).
+#include <ctime>
+namespace bench_profile {
+inline double step_seconds[4] = {0, 0, 0, 0}, step_cpu[4] = {0, 0, 0, 0};
+inline double cpu_now() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+inline double cpu_last = 0;
+inline void add(int step, double seconds) {
+  const double now = cpu_now();
+  step_seconds[step] += seconds;
+  step_cpu[step] += now - cpu_last;
+  cpu_last = now;
+}
+} // namespace bench_profile
+#define BVH_DISJOINT_PROFILE bench_profile::add
+
 #include "../bvh.h"
 #include "../scene.h"
 #include "../shapes.h"
@@ -60,6 +83,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "peers.h"
@@ -154,6 +178,62 @@ template <class T> Outcome discard_ours(const std::vector<T> &c, int depth_limit
     }
   o.seconds = timer.stop();
   return o;
+}
+
+/// insert_disjoint() on `threads` threads (0: all cores), with the serial
+/// fraction of its steps on stderr (parallel: the queries against the tree
+/// and the survivors' pair tests; serial: the rest, mostly the insertions).
+template <class T> Outcome discard_ours_par(const std::vector<T> &c, unsigned threads) {
+  for (double &s : bench_profile::step_seconds) s = 0;
+  for (double &s : bench_profile::step_cpu) s = 0;
+  Outcome o;
+  Timer timer;
+  bench_profile::cpu_last = bench_profile::cpu_now();
+  const double cpu_start = bench_profile::cpu_last;
+  BVH<T> tree(4, 0);
+  const std::vector<std::size_t> kept = tree.insert_disjoint(c, threads);
+  o.seconds = timer.stop();
+  o.ids.assign(kept.begin(), kept.end());
+  const double cpu = bench_profile::cpu_now() - cpu_start;
+  const double *t = bench_profile::step_seconds;
+  const double serial = t[0] + t[3], parallel = t[1] + t[2];
+  if (serial + parallel > 0)
+    std::cerr << "bench: insert_disjoint(" << threads << "): steps 1 (queries) " << fmt("%.4f", t[1])
+              << " s, 2 (pairs) " << fmt("%.4f", t[2]) << " s, 3 (inserts) " << fmt("%.4f", t[3])
+              << " s, other serial " << fmt("%.4f", t[0]) << " s; serial fraction of the wall time "
+              << fmt("%.3f", serial / (serial + parallel)) << "; CPU seconds, all threads: steps 1 "
+              << fmt("%.4f", bench_profile::step_cpu[1]) << ", 2 " << fmt("%.4f", bench_profile::step_cpu[2])
+              << ", 3 " << fmt("%.4f", bench_profile::step_cpu[3]) << ", other " << fmt("%.4f", bench_profile::step_cpu[0])
+              << "; whole call: " << fmt("%.4f", o.seconds) << " s wall, " << fmt("%.4f", cpu) << " s CPU\n";
+  if (serial + parallel <= 0)
+    std::cerr << "bench: insert_disjoint(" << threads << "): " << fmt("%.4f", o.seconds) << " s wall, "
+              << fmt("%.4f", cpu) << " s CPU\n";
+  return o;
+}
+
+/// What this machine lends a parallel loop right now: a spin loop's work
+/// on every core against the same work on one, in wall time (2.0 on an idle
+/// 2-core machine; about 1.0 when other processes hold the cores).
+double available_parallelism() {
+  const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+  auto spin = [](long n) {
+    volatile long sink = 0;
+    long s = 0;
+    for (long i = 0; i < n; ++i) s += i ^ (s >> 3);
+    sink = s;
+    (void)sink;
+  };
+  const long total = 400000000;
+  const auto t0 = Clock::now();
+  spin(total);
+  const double one = seconds_since(t0);
+  const auto t1 = Clock::now();
+  std::vector<std::thread> pool;
+  for (unsigned k = 1; k < threads; ++k) pool.emplace_back(spin, total / long(threads));
+  spin(total / long(threads));
+  for (std::thread &t : pool) t.join();
+  const double all = seconds_since(t1);
+  return all > 0 ? one / all : 0;
 }
 
 /// `threads`: construct()'s build threads (0: its default, hardware concurrency).
@@ -363,6 +443,8 @@ std::vector<Method> all_methods() {
       {"ours", "ours BVH(4, unlimited)", true, ""},
       {"ours-1t", "ours BVH(4), 1 build thread", true, ""}, // bulk workloads only
       {"ours-d8", "ours BVH(4, depth 8)", true, ""},
+      {"ours-par", "ours insert_disjoint, all", true, ""},      // discard workloads only
+      {"ours-par1", "ours insert_disjoint(.., 1)", true, ""},   // discard workloads only
       {"brute", "brute force", true, ""},
       {"boost-quad16", "Boost rtree quadratic<16>", BENCH_HAVE_BOOST != 0,
        "skipped Boost.Geometry: apt-get install libboost-dev"},
@@ -377,6 +459,8 @@ std::vector<Method> all_methods() {
 template <class T> bool run_discard(const std::string &m, const std::vector<T> &c, Outcome &o) {
   if (m == "ours") o = discard_ours(c, 0);
   else if (m == "ours-d8") o = discard_ours(c, 8);
+  else if (m == "ours-par") o = discard_ours_par(c, 0);
+  else if (m == "ours-par1") o = discard_ours_par(c, 1);
   else if (m == "brute") o = discard_brute(c);
 #if BENCH_HAVE_BOOST
   else if (m == "boost-quad16") o = discard_boost<bgi::quadratic<16>>(c);
@@ -621,7 +705,10 @@ struct Workload {
   bool sweep = false;
 };
 
-bool method_selected(const Options &opt, const std::string &m) { return opt.method.empty() || opt.method == m; }
+/// --method NAME, or several: NAME,NAME,...
+bool method_selected(const Options &opt, const std::string &m) {
+  return opt.method.empty() || ("," + opt.method + ",").find("," + m + ",") != std::string::npos;
+}
 
 long brute_limit(const Options &opt) { return opt.quick ? 30000 : 100000; }
 
@@ -644,6 +731,8 @@ void run_workload(const Options &opt, const Workload &w, const std::vector<T> &c
       row.note = w.bulk ? "skipped: 1M x 100k scan" : "skipped: over " + count_label(brute_limit(opt)) + " candidates";
     } else if (m.name == "ours-1t" && !w.bulk) {
       continue; // only construct() uses threads
+    } else if ((m.name == "ours-par" || m.name == "ours-par1") && w.bulk) {
+      continue; // insert_disjoint is a discard
     } else if (m.name == "grid" && (w.bulk || !std::is_same<T, Disk>::value)) {
       continue; // the grid is a reference for disk discards only
     }
@@ -948,7 +1037,7 @@ void usage() {
                "                    (default 5, 3 for the 1M workloads, 1 with --only)\n"
                "  --only WORKLOAD   one workload: W1 W2 W3 tri quad S1000 ... S1000000\n"
                "                    (implies --in-process; no files are written)\n"
-               "  --method NAME     one method: ours ours-1t ours-d8 brute boost-quad16 boost-rstar16 box2d grid\n"
+               "  --method NAME     one method (or several: NAME,NAME): ours ours-1t ours-d8 ours-par ours-par1 brute boost-quad16 boost-rstar16 box2d grid\n"
                "  --big N           N candidates in W1, W2 and W3 instead of 1M (the 10M scaling point:\n"
                "                    --big 10000000 --only W2 --method ours, then boost-quad16, grid)\n"
                "  --in-process      no fork per run (for valgrind/perf); peak RSS is then cumulative\n"
@@ -1024,6 +1113,14 @@ int main(int argc, char **argv) {
       rep.notes.push_back(m.missing);
       std::cout << m.missing << "\n";
     }
+
+  if (method_selected(opt, "ours-par") && !opt.method.empty()) {
+    const std::string line = "available parallelism (bench's spin loop on " +
+                             std::to_string(std::max(1u, std::thread::hardware_concurrency())) +
+                             " threads against 1, wall time): " + fmt("%.2f", available_parallelism()) + "x";
+    std::cout << line << "\n";
+    rep.notes.push_back(line);
+  }
 
   // W1 and the sweep (prefixes of W1's scene).
   std::vector<std::string> sweep_titles;

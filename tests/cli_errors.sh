@@ -171,6 +171,14 @@ bad_scene input_over_long_line disks "\.disks:1: line longer than" "$long_line\n
 
 expect cli_generate_shapes_wrong_suffix 2 "must end in \.shapes" -- --generate shapes 10 -o "$dir/x.disks"
 
+# --threads N: 1 to 1024 (the default is all cores).
+expect cli_threads_zero 2 "--threads needs an integer from 1 to 1024, not '0'" -- -i $good -o "$o" --incremental --discard_overlap --threads 0
+expect cli_threads_negative 2 "--threads needs an integer from 1 to 1024, not '-2'" -- -i $good -o "$o" --incremental --discard_overlap --threads -2
+expect cli_threads_not_a_number 2 "--threads needs an integer from 1 to 1024, not 'all'" -- -i $good -o "$o" --incremental --discard_overlap --threads all
+expect cli_threads_too_large 2 "--threads needs an integer from 1 to 1024, not '1025'" -- -i $good -o "$o" --threads 1025
+expect cli_threads_missing_value 2 "--threads needs a value" -- -i $good -o "$o" --incremental --discard_overlap --threads
+expect cli_threads_twice 2 "--threads given twice" -- -i $good -o "$o" --threads 2 --threads 2
+
 # An error keeps an existing picture as it was.
 echo keep >"$o"
 printf 'pt= <x> radius= 1 color= {1 2 3}\n' >"$dir/broken.disks"

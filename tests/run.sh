@@ -196,6 +196,7 @@ unit_tests() {
   run_suite test_moving "$BUILD/test_moving"
   run_suite test_parse "$BUILD/test_parse"
   run_suite test_names "$BUILD/test_names"
+  run_suite test_disjoint "$BUILD/test_disjoint"
   # collision() without SSE2 (BVH_NO_SIMD): the scalar fallback against the same brute force.
   BVH_TEST_SCALE=0.3 run_suite test_bvh_scalar "$BUILD/test_bvh_scalar"
 }
@@ -229,6 +230,7 @@ sanitizers() {
   BVH_TEST_SCALE=0.5 run_suite test_moving_sanitized "$BUILD/test_moving_san"
   BVH_TEST_SCALE=0.1 run_suite test_parse_sanitized "$BUILD/test_parse_san"
   run_suite test_names_sanitized "$BUILD/test_names_san"
+  BVH_TEST_SCALE=0.3 run_suite test_disjoint_sanitized "$BUILD/test_disjoint_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
     '$BUILD/bvh_san.out' -i inputs/gen_overlap_1000.triangles -o '$OUT/san.html' --depth_limit 8 --incremental \
@@ -254,6 +256,7 @@ portable() {
     run_suite test_parse_libcxx "$BUILD/test_parse_libcxx"
     run_suite test_threads_libcxx "$BUILD/test_threads_libcxx"
     run_suite test_names_libcxx "$BUILD/test_names_libcxx"
+    run_suite test_disjoint_libcxx "$BUILD/test_disjoint_libcxx"
   else
     skip "test_*_libcxx" "clang++ with libc++ is not installed (apt-get install clang libc++-dev libc++abi-dev)"
   fi
@@ -288,9 +291,11 @@ asserts() {
   run_case bvh_assert_user_handler "$BUILD/test_asserts_throwing" handler
 }
 
-# construct()'s build threads under ThreadSanitizer: a data race fails it.
+# construct()'s build threads and insert_disjoint's workers (and const
+# queries from several threads) under ThreadSanitizer: a data race fails it.
 tsan() {
   BVH_TEST_SCALE=0.25 run_suite test_threads_under_thread_sanitizer "$BUILD/test_threads_tsan"
+  BVH_TEST_SCALE=0.2 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_disjoint_tsan"
 }
 
 # bvh.h alone in the course's framework (stand-ins written from the spec),
@@ -463,6 +468,12 @@ cli_errors() {
   relay "cli_*" "$LOGS/cli_errors.log"
 }
 
+# bvh.out --threads N: the same stdout and picture for every N (tests/cli_threads.sh).
+cli_threads() {
+  bash tests/cli_threads.sh "$OUT/cli_threads" ./bvh.out "$COURSE_DATA" >"$LOGS/cli_threads.log" 2>&1
+  relay "cli_threads_*" "$LOGS/cli_threads.log"
+}
+
 # valgrind memcheck: unit tests and a bulk, an incremental and a discard run.
 valgrind_layer() {
   if ! have valgrind; then
@@ -476,6 +487,7 @@ valgrind_layer() {
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_dynamic"
   BVH_TEST_SCALE=0.5 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_moving"
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_parse"
+  BVH_TEST_SCALE=0.1 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_disjoint"
   run_case valgrind_bulk_build "${VG[@]}" ./bvh.out -i inputs/gen_1000.triangles -o "$OUT/vg_bulk.html" \
     --depth_limit 4 --visualize --print_tree
   run_case valgrind_incremental "${VG[@]}" ./bvh.out -i inputs/gen_1000.quads -o "$OUT/vg_incremental.html" \
@@ -587,6 +599,7 @@ else
   layer portable portable
   layer cli_errors cli_errors
   layer cli_output cli_output
+  layer cli_threads cli_threads
   layer demo demo_layer
   layer examples examples
   layer asserts asserts

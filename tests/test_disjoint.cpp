@@ -1,0 +1,352 @@
+// tests/test_disjoint.cpp — insert_disjoint() (discard-overlap sampling on
+// several threads) against the sequential loop
+//   for (i) if (!tree.collision(c[i])) tree.insert(c[i]);
+// at 1, 2, 3 and 8 threads, on dense, sparse, clustered and duplicated
+// scenes of every shape kind, from empty and non-empty trees: the kept
+// indices, the iteration order shape by shape with each shape's handle, the
+// statistics report, the next handle insert() gives, and validate() must all
+// be the loop's. Also: exceptions from a user's intersect() thrown inside
+// the workers, and const queries from several threads at once (make test
+// builds this file with -fsanitize=thread too). Seeds are printed on
+// failure (BVH_SEED changes them; BVH_TEST_SCALE shrinks the runs).
+#include <algorithm>
+#include <atomic>
+#include <iterator>
+#include <cmath>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bvh.h"
+#include "check.h"
+#include "scenes.h"
+
+namespace {
+
+template <class T> const char *kind_name();
+template <> const char *kind_name<Disk>() { return "disks"; }
+template <> const char *kind_name<Triangle>() { return "triangles"; }
+template <> const char *kind_name<Quad>() { return "quads"; }
+template <> const char *kind_name<Shape>() { return "mixed shapes"; }
+
+/// Thread counts the cases compare with the loop (scaled-down runs: fewer).
+std::vector<unsigned> thread_counts() {
+  if (scale() >= 1) return {1, 2, 3, 8};
+  return {2, 3};
+}
+
+/// Everything of a tree the loop's tree must agree with: every shape in
+/// iteration order with its handle, the statistics report with the tree,
+/// and the handle the next insert() would get.
+template <class T> std::string fingerprint(BVH<T> tree) {
+  std::ostringstream out;
+  for (auto it = tree.begin(); it != tree.end(); ++it) out << it.id().id << " " << key_of(*it) << "\n";
+  tree.statistics(out, true);
+  out << "height " << tree.height() << " nodes " << tree.node_count() << "\n";
+  if (!tree.empty()) out << "next handle " << tree.insert(*tree.begin()).id << "\n";
+  return out.str();
+}
+
+/// How a case's tree starts.
+enum class Start { empty, constructed, inserted };
+
+template <class T> BVH<T> starting_tree(const std::vector<T> &base, Start how, int split, int depth) {
+  BVH<T> tree(split, depth);
+  if (how == Start::constructed) tree.construct(base);
+  if (how == Start::inserted)
+    for (const T &s : base) tree.insert(s);
+  // A few holes in the handles, so that insert() reuses free ids.
+  if (how != Start::empty && tree.size() > 10) {
+    tree.erase(typename BVH<T>::handle{3});
+    tree.erase(typename BVH<T>::handle{7});
+  }
+  return tree;
+}
+
+/// The loop and insert_disjoint() at every thread count agree on
+/// `candidates` from the starting tree (`base`, `how`).
+template <class T>
+void check_against_loop(const std::vector<T> &base, Start how, const std::vector<T> &candidates, int split,
+                        int depth, const std::string &where) {
+  note(where);
+  BVH<T> loop = starting_tree(base, how, split, depth);
+  std::vector<std::size_t> loop_kept;
+  for (std::size_t i = 0; i < candidates.size(); ++i)
+    if (!loop.collision(candidates[i])) {
+      loop.insert(candidates[i]);
+      loop_kept.push_back(i);
+    }
+  const std::string want = fingerprint(loop);
+  for (unsigned threads : thread_counts()) {
+    note(where + " threads " + std::to_string(threads));
+    BVH<T> tree = starting_tree(base, how, split, depth);
+    const std::vector<std::size_t> kept = tree.insert_disjoint(candidates, threads);
+    CHECK(kept == loop_kept);
+    std::string why;
+    CHECK(tree.validate(&why));
+    if (!why.empty()) note(where + " threads " + std::to_string(threads) + ": " + why);
+    CHECK(tree.size() == loop.size());
+    CHECK(fingerprint(tree) == want);
+  }
+}
+
+/// Shapes of `scene` whose centre lies within 60 of one of five random
+/// centres: dense clusters in empty space.
+template <class T> std::vector<T> clustered(Maker &make, int n) {
+  std::vector<Point> centres;
+  for (int i = 0; i < 5; ++i) centres.push_back(Point(make.coord(100, 900), make.coord(100, 900)));
+  std::vector<T> out;
+  for (const T &s : make.scene<T>(n * 60, 12)) {
+    for (const Point &c : centres) {
+      const double dx = s.getCenter().x - c.x, dy = s.getCenter().y - c.y;
+      if (dx * dx + dy * dy < 60 * 60) {
+        out.push_back(s);
+        break;
+      }
+    }
+    if (int(out.size()) == n) break;
+  }
+  return out;
+}
+
+/// Every scene kind, from each kind of starting tree.
+template <class T> void scenes_against_loop(unsigned seed) {
+  for (int round = 0; round < scaled(6); ++round) {
+    const std::string where = std::string(kind_name<T>()) + " BVH_SEED=" + std::to_string(seed) + " round " +
+                              std::to_string(round);
+    Maker make(seed + unsigned(round), round % 3 == 2 ? 25.0 : 0.0); // some rounds: tied coordinates
+    const int split = 1 + int(make.rng() % 6);
+    static const int depths[] = {BVH<T>::unlimited, BVH<T>::unlimited, 2, 6};
+    const int depth = depths[make.rng() % 4];
+    const Start how = round % 3 == 0 ? Start::empty : round % 3 == 1 ? Start::constructed : Start::inserted;
+    const std::vector<T> base = make.scene<T>(scaled(400), 10);
+    const int n = scaled(3000);
+    // Dense: most candidates hit the tree (after the first batches).
+    check_against_loop(base, how, make.scene<T>(n, 30), split, depth, where + " dense");
+    // Sparse: most are kept, and survivors meet each other in a batch.
+    check_against_loop(base, how, make.scene<T>(n, 2), split, depth, where + " sparse");
+    // Clustered.
+    check_against_loop(base, how, clustered<T>(make, n), split, depth, where + " clustered");
+    // Exact duplicates, in runs and scattered.
+    std::vector<T> dup;
+    for (const T &s : make.scene<T>(n / 6, 5))
+      for (int k = 0; k < 3; ++k) dup.push_back(s);
+    const std::vector<T> runs = dup;
+    std::shuffle(dup.begin(), dup.end(), make.rng);
+    check_against_loop(base, how, runs, split, depth, where + " duplicates in runs");
+    check_against_loop(base, how, dup, split, depth, where + " duplicates scattered");
+  }
+}
+
+} // namespace
+
+TEST(disjoint_is_the_loop_disks) { scenes_against_loop<Disk>(base_seed() + 20); }
+TEST(disjoint_is_the_loop_triangles) { scenes_against_loop<Triangle>(base_seed() + 120); }
+TEST(disjoint_is_the_loop_quads) { scenes_against_loop<Quad>(base_seed() + 220); }
+TEST(disjoint_is_the_loop_mixed) { scenes_against_loop<Shape>(base_seed() + 320); }
+
+// Large enough for the batches to grow and shrink: a dense scene after a
+// sparse one, then a sparse one on the now full tree.
+TEST(disjoint_batches_adapt_and_stay_exact) {
+  const unsigned seed = base_seed() + 420;
+  Maker make(seed);
+  std::vector<Disk> c = make.scene<Disk>(scaled(20000), 0.5);
+  const std::vector<Disk> dense = make.scene<Disk>(scaled(60000), 8);
+  c.insert(c.end(), dense.begin(), dense.end());
+  const std::vector<Disk> sparse = make.scene<Disk>(scaled(20000), 0.3);
+  c.insert(c.end(), sparse.begin(), sparse.end());
+  check_against_loop(std::vector<Disk>{}, Start::empty, c, 4, BVH<Disk>::unlimited,
+                     "BVH_SEED=" + std::to_string(seed) + " sparse, dense, sparse");
+}
+
+// A long run of rejected candidates (they fall on one big disk) grows the
+// batch to its largest; then tens of thousands survive the tree at once and
+// meet each other in one batch: step 2's sweep runs on every thread (from
+// 4,096 survivors), also in the scaled-down runs (ThreadSanitizer's).
+TEST(disjoint_one_huge_batch_of_survivors) {
+  const unsigned seed = base_seed() + 470;
+  Maker make(seed);
+  std::vector<Disk> c;
+  for (int i = 0; i < 60000; ++i) c.push_back(Disk(Point(make.coord(150, 350), make.coord(400, 600)), make.coord(0, 3)));
+  for (int i = 0; i < 30000; ++i) c.push_back(Disk(Point(make.coord(520, 1000), make.coord(0, 1000)), make.coord(0, 1.2)));
+  check_against_loop(std::vector<Disk>{Disk(Point(250, 500), 240)}, Start::inserted, c, 4, BVH<Disk>::unlimited,
+                     "BVH_SEED=" + std::to_string(seed) + " one huge batch");
+}
+
+TEST(disjoint_on_tiny_and_empty_inputs) {
+  const unsigned seed = base_seed() + 520;
+  Maker make(seed);
+  for (int n = 0; n <= 9; ++n) {
+    const std::string where = "BVH_SEED=" + std::to_string(seed) + " n " + std::to_string(n);
+    check_against_loop(std::vector<Disk>{}, Start::empty, make.scene<Disk>(n, 200), 2, 0, where + " empty tree");
+    check_against_loop(make.scene<Disk>(30, 20), Start::inserted, make.scene<Disk>(n, 100), 2, 3,
+                       where + " non-empty tree");
+    check_against_loop(std::vector<Triangle>{}, Start::empty, make.scene<Triangle>(n, 300), 1, 0,
+                       where + " triangles");
+  }
+  // Threads 0: the hardware's.
+  BVH<Disk> tree;
+  CHECK(tree.insert_disjoint({}).empty());
+  const std::vector<Disk> c = make.scene<Disk>(500, 20);
+  BVH<Disk> loop;
+  std::vector<std::size_t> want;
+  for (std::size_t i = 0; i < c.size(); ++i)
+    if (!loop.collision(c[i])) {
+      loop.insert(c[i]);
+      want.push_back(i);
+    }
+  CHECK(tree.insert_disjoint(c) == want);
+  CHECK(fingerprint(tree) == fingerprint(loop));
+}
+
+// ---------------------------------------------------------------------------
+// Exceptions from the user's intersect() inside the workers.
+
+namespace fragile {
+
+struct Boom : std::runtime_error {
+  Boom() : std::runtime_error("intersect() of the poisoned candidate") {}
+};
+
+/// A disk with its candidate index; intersect() throws Boom on any pair
+/// with the poisoned index.
+struct Tagged {
+  Disk disk;
+  int tag = -1;
+  BoundingBox getBox() const { return disk.getBox(); }
+  Point getCenter() const { return disk.getCenter(); }
+};
+inline std::atomic<int> &poison() {
+  static std::atomic<int> p{-1};
+  return p;
+}
+inline bool intersect(const Tagged &a, const Tagged &b) {
+  if (a.tag == poison() || b.tag == poison()) throw Boom();
+  return ::intersect(a.disk, b.disk);
+}
+
+} // namespace fragile
+
+namespace {
+
+/// (tag, handle) in iteration order, and validity: what is compared when
+/// fragile::Tagged has no statistics of its own worth printing.
+std::string fingerprint_tagged(const BVH<fragile::Tagged> &tree) {
+  std::ostringstream out;
+  for (auto it = tree.begin(); it != tree.end(); ++it) out << it->tag << ":" << it.id().id << " ";
+  out << "| height " << tree.height() << " nodes " << tree.node_count();
+  return out.str();
+}
+
+} // namespace
+
+TEST(disjoint_rethrows_intersect_and_keeps_a_prefix) {
+  const unsigned seed = base_seed() + 620;
+  Maker make(seed);
+  for (int round = 0; round < scaled(8); ++round) {
+    const std::string where = "BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
+    note(where);
+    std::vector<fragile::Tagged> c;
+    for (const Disk &d : make.scene<Disk>(scaled(4000), round % 2 ? 2.0 : 12.0))
+      c.push_back(fragile::Tagged{d, int(c.size())});
+    // The loop without poison: what it keeps, and the first candidate it
+    // rejects after `from` (whose decision compares it with a kept shape,
+    // so the loop with the poison throws there).
+    fragile::poison() = -1;
+    std::vector<std::size_t> kept;
+    {
+      BVH<fragile::Tagged> loop(3);
+      for (std::size_t i = 0; i < c.size(); ++i)
+        if (!loop.collision(c[i])) {
+          loop.insert(c[i]);
+          kept.push_back(i);
+        }
+    }
+    const std::size_t from = std::size_t(make.rng() % c.size());
+    std::size_t victim = c.size();
+    for (std::size_t i = from, k = 0; i < c.size() && victim == c.size(); ++i) {
+      while (k < kept.size() && kept[k] < i) ++k;
+      if (k == kept.size() || kept[k] != i) victim = i;
+    }
+    if (victim == c.size()) continue;
+    fragile::poison() = int(victim);
+    for (unsigned threads : thread_counts()) {
+      note(where + " threads " + std::to_string(threads) + " poisoned " + std::to_string(victim));
+      BVH<fragile::Tagged> tree(3);
+      bool thrown = false;
+      try {
+        tree.insert_disjoint(c, threads);
+      } catch (const fragile::Boom &) {
+        thrown = true;
+      }
+      CHECK(thrown);
+      std::string why;
+      CHECK(tree.validate(&why));
+      // The tree is the loop's after some k <= victim candidates: the first
+      // tree.size() kept ones, all before the victim.
+      const std::size_t q = tree.size();
+      CHECK(q <= kept.size());
+      if (q > kept.size()) continue;
+      CHECK(q == 0 || kept[q - 1] < victim);
+      fragile::poison() = -1;
+      BVH<fragile::Tagged> prefix(3);
+      for (std::size_t k = 0; k < q; ++k) prefix.insert(c[kept[k]]);
+      CHECK(fingerprint_tagged(tree) == fingerprint_tagged(prefix));
+      // One thread: exactly the loop up to the victim.
+      if (threads == 1) CHECK(q == std::size_t(std::lower_bound(kept.begin(), kept.end(), victim) - kept.begin()));
+      // The tree goes on as the loop would.
+      const std::vector<std::size_t> rest = tree.insert_disjoint(c, threads);
+      for (std::size_t i = 0; i < c.size(); ++i)
+        if (!prefix.collision(c[i])) prefix.insert(c[i]);
+      CHECK(fingerprint_tagged(tree) == fingerprint_tagged(prefix));
+      CHECK(rest.size() == kept.size() - q);
+      fragile::poison() = int(victim);
+    }
+    fragile::poison() = -1;
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Const queries from several threads at once, on one tree that nobody
+// changes: each thread's answers must be the one-thread answers (and under
+// ThreadSanitizer, no data race).
+
+TEST(const_queries_are_safe_for_concurrent_readers) {
+  const unsigned seed = base_seed() + 720;
+  note("BVH_SEED=" + std::to_string(seed));
+  Maker make(seed);
+  BVH<Shape> tree(3);
+  tree.construct(make.scene<Shape>(scaled(5000), 8));
+  for (const Shape &s : make.scene<Shape>(scaled(2000), 4)) tree.insert(s);
+  const std::vector<Shape> probes = make.scene<Shape>(scaled(3000), 10);
+  auto answers = [&](std::size_t first) {
+    std::ostringstream out;
+    for (std::size_t k = 0; k < probes.size(); ++k) {
+      const Shape &p = probes[(first + k) % probes.size()];
+      std::size_t touching = 0, boxes = 0;
+      tree.query(p, [&](const Shape &) { ++touching; });
+      tree.query(p.getBox(), [&](const Shape &) { ++boxes; });
+      std::size_t through = 0;
+      for (const Shape &s : tree.overlapping(p)) through += s.getBox().getMin().x >= 0;
+      std::vector<BVH<Shape>::neighbor> near;
+      tree.nearest(p.getCenter(), 3, std::back_inserter(near));
+      out << (first + k) % probes.size() << ":" << tree.collision(p) << touching << "," << boxes << "," << through;
+      for (const auto &nb : near) out << "," << nb.id.id;
+      out << " ";
+    }
+    return out.str();
+  };
+  // Each thread starts at a different probe; the answers are compared after
+  // rotating back.
+  std::vector<std::string> alone(4), together(4);
+  for (std::size_t t = 0; t < 4; ++t) alone[t] = answers(t * probes.size() / 4);
+  std::vector<std::thread> pool;
+  for (std::size_t t = 0; t < 4; ++t) pool.emplace_back([&, t] { together[t] = answers(t * probes.size() / 4); });
+  for (std::thread &th : pool) th.join();
+  for (std::size_t t = 0; t < 4; ++t) CHECK(together[t] == alone[t]);
+}
+
+int main(int argc, char **argv) { return run_all_tests(argc, argv); }
