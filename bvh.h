@@ -276,7 +276,7 @@ public:
   /// True when there is no element.
   bool empty() const { return size_ == 0; }
   /// Drops every element and block.
-  void clear() {
+  void clear() noexcept {
     blocks_.clear();
     size_ = 0;
   }
@@ -676,7 +676,7 @@ public:
   /// The free nodes.
   const std::vector<int> &free_list() const { return free_; }
   /// Drops every node.
-  void clear() {
+  void clear() noexcept {
     nodes_.clear();
     info_.clear();
     free_.clear();
@@ -1132,9 +1132,9 @@ public:
 
   /// Destroys every shape; the ids stay taken (update() of the last shape
   /// inserts it again under its id).
-  void clear_shapes() { pool_ = LeafPool<T>(); }
+  void clear_shapes() noexcept { pool_ = LeafPool<T>(); }
   /// Destroys every shape and forgets every id.
-  void clear() {
+  void clear() noexcept {
     clear_shapes();
     loc_.clear();
     free_ids_.clear();
@@ -1205,14 +1205,14 @@ template <class T, class Tr> struct Core {
   }
 
   /// Drops every node and shape but keeps the ids.
-  void clear_nodes() {
+  void clear_nodes() noexcept {
     nodes.clear();
     leaves.clear_shapes();
     root = -1;
     size = 0;
   }
   /// Drops everything stored; the parameters stay.
-  void clear() {
+  void clear() noexcept {
     clear_nodes();
     leaves.clear();
   }
@@ -2508,6 +2508,10 @@ public:
     return *this;
   }
   ~BVH() = default;
+  /// Exchanges the shapes and parameters of two trees. Never throws.
+  void swap(BVH &other) noexcept { core_.swap(other.core_); }
+  /// a.swap(b).
+  friend void swap(BVH &a, BVH &b) noexcept { a.swap(b); }
 
   /// A stored shape's name. insert() returns it; construct(elements) names
   /// elements[i] `handle{std::uint32_t(i)}`. It stays valid until that shape
@@ -2638,7 +2642,7 @@ public:
   unsigned build_threads() const { return detail::threads_for(core_.build_threads); }
 
   /// Removes every shape; every handle becomes invalid.
-  void clear() { core_.clear(); }
+  void clear() noexcept { core_.clear(); }
 
   /// Replaces the contents with `elements`, built top-down by the build
   /// rule (the course's: see detail::CourseRule); elements[i] gets the
