@@ -287,13 +287,18 @@ public:
     reserve(n);
     while (size_ < n) emplace_back();
   }
-  /// Appends a default-constructed element (strong: if it throws, nothing
-  /// changed).
-  void emplace_back() {
+  /// Makes room for one more element: after it, emplace_back() cannot
+  /// throw. Strong.
+  void reserve_one() {
     if (size_ == blocks_.size() << kShift) {
       std::unique_ptr<X[]> block(new X[kBlock]()); // (owned before the table may grow)
       blocks_.push_back(std::move(block));
     }
+  }
+  /// Appends a default-constructed element (strong: if it throws, nothing
+  /// changed).
+  void emplace_back() {
+    reserve_one();
     ++size_;
   }
   /// Removes the last element (reset to its default, as the next
@@ -407,7 +412,7 @@ struct Box {
 /// With SSE2 the four at once and without branches: every box a node
 /// stores and every query's box is rounded, and the scalar steps' branches
 /// go either way at random.
-inline void round_out(const Box &b, float out[4]) {
+BVH_ALWAYS_INLINE void round_out(const Box &b, float out[4]) {
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
   const __m128d lo = _mm_set_pd(b.y0, b.x0), hi = _mm_set_pd(b.y1, b.x1);
   const __m128 f = _mm_movelh_ps(_mm_cvtpd_ps(lo), _mm_cvtpd_ps(hi));
@@ -667,13 +672,10 @@ public:
       return n;
     }
     reserve_for(free_, nodes_.size() + 1);
+    nodes_.reserve_one(); // (then neither emplace_back throws)
+    info_.reserve_one();
     nodes_.emplace_back();
-    try {
-      info_.emplace_back();
-    } catch (...) {
-      nodes_.pop_back();
-      throw;
-    }
+    info_.emplace_back();
     return int(nodes_.size() - 1);
   }
   /// Grows the arrays to `total` nodes (a laid-out build's).
@@ -1033,18 +1035,12 @@ private:
         free_slots.pop_back();
         return i;
       }
-      // Strong: room in the free list first, then the slot, then its block.
+      // Strong: room in both lists first, then the block, then the slot.
       const std::uint32_t i = std::uint32_t(sizes.size());
       reserve_for(free_slots, sizes.size() + 1);
+      reserve_for(sizes, sizes.size() + 1);
+      if (i % per_block_ == 0) add_block();
       sizes.push_back(0);
-      if (i % per_block_ == 0) {
-        try {
-          add_block();
-        } catch (...) {
-          sizes.pop_back();
-          throw;
-        }
-      }
       return i;
     }
     void release(std::uint32_t i) noexcept {
@@ -1155,14 +1151,20 @@ public:
 
   /// Appends `shape` with `id` to leaf n (node `leaf`), giving the leaf a
   /// slot first if it has none; the id is located there. Strong.
-  template <class V> void push(Node &leaf, int n, V &&shape, std::uint32_t id) {
+  template <class V> BVH_ALWAYS_INLINE void push(Node &leaf, int n, V &&shape, std::uint32_t id) {
     const LeafSlot had = leaf.leaf();
-    typename LeafPool<T>::Slot s = had.has_slot() ? pool_slot(had) : pool_.allocate(1);
-    try {
+    typename LeafPool<T>::Slot s;
+    if (had.has_slot()) {
+      s = pool_slot(had);
       pool_.push_back(s, std::forward<V>(shape), id);
-    } catch (...) {
-      if (!had.has_slot()) pool_.release(s);
-      throw;
+    } else {
+      s = pool_.allocate(1);
+      try {
+        pool_.push_back(s, std::forward<V>(shape), id);
+      } catch (...) {
+        pool_.release(s);
+        throw;
+      }
     }
     loc_[id] = Loc{n, std::uint32_t(pool_.size(s) - 1)};
     leaf.set_leaf(record(s));
@@ -1873,14 +1875,14 @@ template <class T, class Tr> void relocate_subtree(Core<T, Tr> &core, int at) no
 
 /// Puts node `by` where node `at` is (root, or its parent's child): `at`'s
 /// subtree is then detached, its ids still located in `by`'s. `by` must
-/// have at's parent, child index and depth. Never throws.
+/// have at's parent, child index and depth, and the parent's float copy
+/// of the box must be by's (build_beside leaves it so). Never throws.
 template <class T, class Tr> void link_in(Core<T, Tr> &core, int at, int by) noexcept {
   const int parent = core.nodes.info(at).parent;
   if (parent < 0)
     core.root = by;
   else
     core.nodes.node(parent).set_child(core.nodes.info(at).child_index, by);
-  core.nodes.set_box(by, core.nodes.box(by)); // (the float copy in the parent is by's)
 }
 
 /// Builds, from `shapes` (reordered), a subtree to take the place of the
@@ -1909,7 +1911,10 @@ template <class T, class Tr> int build_beside(Core<T, Tr> &core, int at, std::ve
 template <class T, class Tr> void replace_by(Core<T, Tr> &core, int at, int fresh) noexcept {
   const bool changed = core.nodes.box(fresh) != core.nodes.box(at);
   link_in(core, at, fresh);
-  free_subtree(core, at);
+  if (core.nodes.node(at).is_leaf()) // (a split's)
+    core.free_node(at);
+  else
+    free_subtree(core, at);
   const int parent = core.nodes.info(fresh).parent;
   if (changed && parent >= 0) core.refit_up(parent);
 }
@@ -2107,7 +2112,7 @@ template <class T, class Tr> void rebalance(Core<T, Tr> &core, int scapegoat, Cu
 /// made). Strong: if it throws, the descent's counts and boxes are undone
 /// and the tree is as it was (a split is built beside the leaf, which goes
 /// only once the new subtree is complete).
-template <class T, class Tr> int insert_unbalanced(Core<T, Tr> &core, const T &shape, std::uint32_t id) {
+template <class T, class Tr> BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr> &core, const T &shape, std::uint32_t id) {
   NodeStore &nodes = core.nodes;
   const Box box = core.fat(box_of(core.traits, shape));
   if (core.root < 0) {
@@ -2152,6 +2157,7 @@ template <class T, class Tr> int insert_unbalanced(Core<T, Tr> &core, const T &s
       core.leaves.push(nodes.node(n), n, shape, id);
     }
   } catch (...) {
+    // Undo the descent: the counts, the leaf's box, its ancestors' unions.
     for (int m = n; m >= 0; m = nodes.info(m).parent) --nodes.info(m).count;
     nodes.set_box(n, leaf_box);
     if (nodes.info(n).parent >= 0) core.refit_up(nodes.info(n).parent);
@@ -2254,6 +2260,7 @@ template <class T, class Tr> void undo_erase(Core<T, Tr> &core, const EraseUndo<
   int from;
   if (undo.fresh >= 0) {
     link_in(core, undo.fresh, undo.old_root);
+    nodes.set_box(undo.old_root, nodes.box(undo.old_root)); // (the parent's float copy)
     relocate_subtree(core, undo.old_root);
     free_subtree(core, undo.fresh);
     from = nodes.info(undo.old_root).parent;
@@ -2864,6 +2871,14 @@ template <class T, class Tr> bool validate(const Core<T, Tr> &core, std::string 
 /// leaves, each exactly once; every node knows the tight box of its
 /// subtree. The const members only read the tree: any number of threads may
 /// call them at once while no thread changes the tree.
+///
+/// Exceptions (docs/library.txt, EXCEPTIONS): T's copy and move may throw,
+/// its destructor must not (static_assert); where stored shapes move the
+/// tree uses std::move_if_noexcept, so a T whose move may throw is copied
+/// there. Each member's comment states its guarantee: strong for insert,
+/// erase(handle), erase(iterator), update, set_margin and copy assignment;
+/// basic for construct (left empty) and erase(value); never throwing for
+/// moves, swap, clear. A Traits adaptor's copy and move must not throw.
 template <class T, class Traits = shape_traits<T>> class BVH {
   static_assert(std::is_nothrow_destructible<T>::value, "BVH<T>: T's destructor must not throw");
   static_assert(std::is_nothrow_copy_constructible<Traits>::value && std::is_nothrow_move_assignable<Traits>::value,

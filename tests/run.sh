@@ -144,6 +144,8 @@ unit_tests() {
   run_suite test_moving "$BUILD/test_moving"
   run_suite test_parse "$BUILD/test_parse"
   run_suite test_names "$BUILD/test_names"
+  # Fault injection: every mutating operation at its k-th copy and allocation (issue 21).
+  run_suite test_exceptions "$BUILD/test_exceptions"
   # collision() without SSE2 (BVH_NO_SIMD): the scalar fallback against the same brute force.
   BVH_TEST_SCALE=0.3 run_suite test_bvh_scalar "$BUILD/test_bvh_scalar"
 }
@@ -157,6 +159,7 @@ sanitizers() {
   BVH_TEST_SCALE=0.5 run_suite test_moving_sanitized "$BUILD/test_moving_san"
   BVH_TEST_SCALE=0.1 run_suite test_parse_sanitized "$BUILD/test_parse_san"
   run_suite test_names_sanitized "$BUILD/test_names_san"
+  BVH_TEST_SCALE=0.5 run_suite test_exceptions_sanitized "$BUILD/test_exceptions_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
     '$BUILD/bvh_san.out' -i inputs/overlap_1000.triangles -o '$OUT/san.html' --depth_limit 8 --incremental \
@@ -182,6 +185,7 @@ portable() {
     run_suite test_parse_libcxx "$BUILD/test_parse_libcxx"
     run_suite test_threads_libcxx "$BUILD/test_threads_libcxx"
     run_suite test_names_libcxx "$BUILD/test_names_libcxx"
+    run_suite test_exceptions_libcxx "$BUILD/test_exceptions_libcxx"
   else
     skip "test_*_libcxx" "clang++ with libc++ is not installed (apt-get install clang libc++-dev libc++abi-dev)"
   fi
@@ -375,6 +379,7 @@ valgrind_layer() {
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_dynamic"
   BVH_TEST_SCALE=0.5 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_moving"
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_parse"
+  BVH_TEST_SCALE=0.2 run_suite valgrind_test_exceptions "${VG[@]}" "$BUILD/test_exceptions"
   run_case valgrind_bulk_build "${VG[@]}" ./bvh.out -i inputs/1000.triangles -o "$OUT/vg_bulk.html" \
     --depth_limit 4 --visualize --print_tree
   run_case valgrind_incremental "${VG[@]}" ./bvh.out -i inputs/1000.quads -o "$OUT/vg_incremental.html" \
