@@ -2308,13 +2308,6 @@ template <class T> void assign(T &dst, const T &src) {
   }
 }
 
-/// True when node `a` is `b` or one of its ancestors.
-inline bool is_ancestor(const NodeStore &nodes, int a, int b) {
-  for (; b >= 0; b = nodes.info(b).parent)
-    if (a == b) return true;
-  return false;
-}
-
 /// The shape of `id` becomes `moved`: in place while it fits its leaf's
 /// box (refitting above when there is no margin), else erased and inserted
 /// again under the same id. Strong (in place: when T's move assignment
@@ -2335,27 +2328,39 @@ template <class T, class Tr> void update_shape(Core<T, Tr> &core, std::uint32_t 
   EraseUndo<T> undo;
   int changed;
   erase_at(core, at.leaf, at.index, &changed, &undo);
-  // (an inner node outlives the insert; a leaf there may split)
-  if (nodes.node(changed).is_leaf() && undo.fresh >= 0) changed = nodes.info(changed).parent;
+  // The erase's rebalance comes before the insert, as erase() then insert()
+  // would do it; the subtree it replaces is kept aside until the insert
+  // has succeeded. If the rebuild throws, it is given up (as rebalance()).
+  const int a = find_scapegoat(core, changed, -1, true);
+  int a_fresh = -1;
+  if (a >= 0) {
+    try {
+      std::vector<Tagged<T>> shapes = copy_subtree(core, a);
+      a_fresh = build_beside(core, a, shapes, Cut::in_order);
+      const bool box_changed = nodes.box(a_fresh) != nodes.box(a);
+      link_in(core, a, a_fresh);
+      if (box_changed && nodes.info(a_fresh).parent >= 0) core.refit_up(nodes.info(a_fresh).parent);
+    } catch (...) {
+      a_fresh = -1;
+    }
+  }
   int n;
   try {
     n = insert_unbalanced(core, moved, id);
   } catch (...) {
+    if (a_fresh >= 0) { // the erase's state again, then before it
+      link_in(core, a_fresh, a);
+      nodes.set_box(a, nodes.box(a)); // (the parent's float copy)
+      relocate_subtree(core, a);
+      free_subtree(core, a_fresh);
+      if (nodes.info(a).parent >= 0) core.refit_up(nodes.info(a).parent);
+    }
     undo_erase(core, undo);
     throw;
   }
   commit_erase(core, undo);
-  // Both changes' rebalances: the higher scapegoat when one holds the other.
-  const int a = changed >= 0 ? find_scapegoat(core, changed, -1, true) : -1;
-  const int b = find_scapegoat(core, nodes.info(n).parent, n, false);
-  if (a >= 0 && b >= 0 && is_ancestor(nodes, a, b)) {
-    rebalance(core, a, Cut::in_order);
-  } else if (a >= 0 && b >= 0 && is_ancestor(nodes, b, a)) {
-    rebalance(core, b, Cut::by_rule);
-  } else {
-    rebalance(core, a, Cut::in_order);
-    rebalance(core, b, Cut::by_rule);
-  }
+  if (a_fresh >= 0) free_subtree(core, a);
+  rebalance(core, find_scapegoat(core, nodes.info(n).parent, n, false), Cut::by_rule);
 }
 
 /// Sets the margin and recomputes every box, bottom-up: O(n).

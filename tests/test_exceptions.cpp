@@ -294,7 +294,7 @@ std::string config_name(const Config &c) {
          std::to_string(c.margin) + (c.sah ? " sah" : " course");
 }
 
-int tree_size() { return std::max(20, int(120 * scale())); }
+int tree_size() { return std::max(40, int(120 * scale())); }
 int trials() { return std::max(2, scaled(8)); }
 
 // ---------------------------------------------------------------------------
@@ -307,7 +307,8 @@ template <class T> void insert_case() {
     for (int sorted = 0; sorted < 2; ++sorted) {
       note(config_name(c));
       Subject<T> base = make_subject<T>(rng, tree_size(), c.split, c.depth, c.margin, c.sah, sorted == 1);
-      for (int t = 0; t < trials(); ++t) {
+      // (sorted: enough steps for a rebuild at any scale)
+      for (int t = 0, steps = sorted ? std::max(8, trials()) : trials(); t < steps; ++t) {
         // Sorted subjects take shapes past the right end: the lopsided
         // growth that triggers scapegoat rebuilds.
         T shape = random_disk<T>(rng);
