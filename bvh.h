@@ -280,7 +280,7 @@ public:
   /// True when there is no element.
   bool empty() const { return size_ == 0; }
   /// Drops every element and block.
-  void clear() {
+  void clear() noexcept {
     blocks_.clear();
     size_ = 0;
   }
@@ -291,9 +291,18 @@ public:
     reserve(n);
     while (size_ < n) emplace_back();
   }
-  /// Appends a default-constructed element.
+  /// Makes room for one more element: after it, emplace_back() cannot
+  /// throw. Strong.
+  void reserve_one() {
+    if (size_ == blocks_.size() << kShift) {
+      std::unique_ptr<X[]> block(new X[kBlock]()); // (owned before the table may grow)
+      blocks_.push_back(std::move(block));
+    }
+  }
+  /// Appends a default-constructed element (strong: if it throws, nothing
+  /// changed).
   void emplace_back() {
-    if (size_ == blocks_.size() << kShift) blocks_.emplace_back(new X[kBlock]());
+    reserve_one();
     ++size_;
   }
   /// Removes the last element (reset to its default, as the next
@@ -305,6 +314,13 @@ private:
   std::vector<std::unique_ptr<X[]>> blocks_;
   std::size_t size_ = 0;
 };
+
+/// Makes room in `v` for n elements, growing geometrically: the free lists
+/// keep room for every index they may be given back, so that giving one
+/// back (in an undo, or freeing a replaced subtree) never allocates.
+template <class I> void reserve_for(std::vector<I> &v, std::size_t n) {
+  if (v.capacity() < n) v.reserve(std::max(n, 2 * v.capacity()));
+}
 
 /// The float next to `f` towards -infinity (towards +infinity when `up`),
 /// by stepping its bit pattern: std::nextafter is a library call, and this
@@ -637,19 +653,38 @@ public:
     return true;
   }
 
-  /// A node index, from the free list first; reset() must follow.
+  NodeStore() = default;
+  /// Deep copy, with the free list's room for every node.
+  NodeStore(const NodeStore &o) : nodes_(o.nodes_), info_(o.info_) {
+    free_.reserve(o.nodes_.size());
+    free_ = o.free_;
+  }
+  NodeStore(NodeStore &&) noexcept = default;
+  NodeStore &operator=(const NodeStore &o) {
+    NodeStore copy(o);
+    swap(copy);
+    return *this;
+  }
+  NodeStore &operator=(NodeStore &&) noexcept = default;
+
+  /// A node index, from the free list first; reset() must follow. Strong:
+  /// if it throws, nothing changed.
   int allocate() {
     if (!free_.empty()) {
       const int n = free_.back();
       free_.pop_back();
       return n;
     }
+    reserve_for(free_, nodes_.size() + 1);
+    nodes_.reserve_one(); // (then neither emplace_back throws)
+    info_.reserve_one();
     nodes_.emplace_back();
     info_.emplace_back();
     return int(nodes_.size() - 1);
   }
   /// Grows the arrays to `total` nodes (a laid-out build's).
   void resize(std::size_t total) {
+    reserve_for(free_, total);
     nodes_.resize(total);
     info_.resize(total);
   }
@@ -668,9 +703,9 @@ public:
   }
   /// Puts node n on the free list (its slot given back); its children
   /// links stay readable until it is reused.
-  void release(int n) {
+  void release(int n) noexcept {
     BVH_INVARIANT(!node(n).is_leaf() || !node(n).leaf().has_slot(), "a freed leaf still owns a slot");
-    free_.push_back(n);
+    free_.push_back(n); // (never allocates: allocate() made room)
   }
 
   /// Nodes in the arrays, live or free.
@@ -680,7 +715,7 @@ public:
   /// The free nodes.
   const std::vector<int> &free_list() const { return free_; }
   /// Drops every node.
-  void clear() {
+  void clear() noexcept {
     nodes_.clear();
     info_.clear();
     free_.clear();
@@ -830,6 +865,26 @@ template <class F> void for_each_preorder(const NodeStore &nodes, int from, F &&
   });
 }
 
+/// Calls f(n) on every node under `from`, children (left to right) before
+/// their parent. Without a stack: it climbs by the nodes' parent links,
+/// so it allocates nothing and never throws; f may free the node it is
+/// given (a freed node's links stay readable until it is reused).
+template <class F> void for_each_postorder(const NodeStore &nodes, int from, F &&f) noexcept {
+  int n = nodes.leftmost_leaf(from);
+  for (;;) {
+    if (n == from) {
+      f(n);
+      return;
+    }
+    const int parent = nodes.info(n).parent, c = nodes.info(n).child_index;
+    f(n);
+    if (c + 1 < nodes.node(parent).num_children)
+      n = nodes.leftmost_leaf(nodes.node(parent).child(c + 1));
+    else
+      n = parent;
+  }
+}
+
 // ===========================================================================
 // 3. Leaf store
 // ===========================================================================
@@ -857,8 +912,8 @@ public:
     while (classes_.size() <= cls) classes_.emplace_back(std::uint32_t(classes_.size()));
     return Slot{classes_[cls].allocate(), cls};
   }
-  /// Destroys the slot's shapes and gives the slot back.
-  void release(Slot s) { classes_[s.cls].release(s.index); }
+  /// Destroys the slot's shapes and gives the slot back (never throws).
+  void release(Slot s) noexcept { classes_[s.cls].release(s.index); }
 
   /// The slot's first shape.
   T *data(Slot s) { return classes_[s.cls].data(s.index); }
@@ -870,28 +925,63 @@ public:
   std::size_t size(Slot s) const { return classes_[s.cls].sizes[s.index]; }
 
   /// Appends a shape with its id; a full slot first moves to one twice as
-  /// large (`s` then names the new slot).
+  /// large (`s` then names the new slot). Strong: if it throws, the slot
+  /// and its shapes are as they were (they move to the larger slot by
+  /// std::move_if_noexcept, and the old slot goes only once all are there).
   template <class V> void push_back(Slot &s, V &&shape, std::uint32_t id) {
     if (size(s) == (std::size_t(1) << s.cls)) {
+      T extra(std::forward<V>(shape)); // (first: `shape` may be one of the slot's)
       const Slot bigger = allocate(std::size_t(2) << s.cls);
-      T *from = data(s);
-      const std::uint32_t *from_ids = ids(s);
-      for (std::size_t i = 0, n = size(s); i < n; ++i)
-        classes_[bigger.cls].construct(bigger.index, std::move(from[i]), from_ids[i]);
+      try {
+        T *from = data(s);
+        const std::uint32_t *from_ids = ids(s);
+        for (std::size_t i = 0, n = size(s); i < n; ++i)
+          classes_[bigger.cls].construct(bigger.index, std::move_if_noexcept(from[i]), from_ids[i]);
+        classes_[bigger.cls].construct(bigger.index, std::move_if_noexcept(extra), id);
+      } catch (...) {
+        release(bigger);
+        throw;
+      }
       release(s);
       s = bigger;
+      return;
     }
     classes_[s.cls].construct(s.index, std::forward<V>(shape), id);
   }
-  /// Removes shape i, keeping the order of the others.
-  void erase(Slot s, std::size_t i) {
-    T *d = data(s);
-    std::uint32_t *id = ids(s);
-    const std::size_t n = size(s);
-    std::move(d + i + 1, d + n, d + i);
-    std::move(id + i + 1, id + n, id + i);
-    d[n - 1].~T();
-    --classes_[s.cls].sizes[s.index];
+  /// True when removing a shape shifts the others in place, which cannot
+  /// throw; otherwise erase() copies the others to a new slot first.
+  static constexpr bool kShiftsInPlace = std::is_nothrow_move_assignable<T>::value;
+  /// Removes shape i, keeping the order of the others (`s` may then name a
+  /// new slot). Strong.
+  void erase(Slot &s, std::size_t i) {
+    if constexpr (!kShiftsInPlace) {
+      const Slot fresh = copy_without(s, i);
+      release(s);
+      s = fresh;
+    } else {
+      T *d = data(s);
+      std::uint32_t *id = ids(s);
+      const std::size_t n = size(s);
+      std::move(d + i + 1, d + n, d + i);
+      std::move(id + i + 1, id + n, id + i);
+      d[n - 1].~T();
+      --classes_[s.cls].sizes[s.index];
+    }
+  }
+  /// A new slot of s's class holding copies of s's shapes but shape i, in
+  /// order, with their ids; `s` is untouched. Strong.
+  Slot copy_without(Slot s, std::size_t i) {
+    const Slot fresh = allocate(std::size_t(1) << s.cls);
+    try {
+      const T *d = data(s);
+      const std::uint32_t *id = ids(s);
+      for (std::size_t k = 0, n = size(s); k < n; ++k)
+        if (k != i) classes_[fresh.cls].construct(fresh.index, d[k], id[k]);
+    } catch (...) {
+      release(fresh);
+      throw;
+    }
+    return fresh;
   }
 
 private:
@@ -906,8 +996,9 @@ private:
       per_block_ = std::size_t(1) << block_shift_;
     }
     Class(const Class &o)
-        : cls_(o.cls_), capacity_(o.capacity_), block_shift_(o.block_shift_), per_block_(o.per_block_),
-          free_slots(o.free_slots) {
+        : cls_(o.cls_), capacity_(o.capacity_), block_shift_(o.block_shift_), per_block_(o.per_block_) {
+      free_slots.reserve(o.sizes.size()); // (room for every slot: release() never allocates)
+      free_slots = o.free_slots;
       sizes.reserve(o.sizes.size());
       try {
         for (std::uint32_t i = 0; i < o.sizes.size(); ++i) {
@@ -948,16 +1039,19 @@ private:
         free_slots.pop_back();
         return i;
       }
+      // Strong: room in both lists first, then the block, then the slot.
       const std::uint32_t i = std::uint32_t(sizes.size());
+      reserve_for(free_slots, sizes.size() + 1);
+      reserve_for(sizes, sizes.size() + 1);
       if (i % per_block_ == 0) add_block();
       sizes.push_back(0);
       return i;
     }
-    void release(std::uint32_t i) {
+    void release(std::uint32_t i) noexcept {
       T *d = data(i);
       for (std::uint32_t j = 0; j < sizes[i]; ++j) d[j].~T();
       sizes[i] = 0;
-      free_slots.push_back(i);
+      free_slots.push_back(i); // (never allocates: allocate() made room)
     }
     template <class V> void construct(std::uint32_t i, V &&v, std::uint32_t id) {
       ::new (static_cast<void *>(data(i) + sizes[i])) T(std::forward<V>(v));
@@ -1045,13 +1139,37 @@ public:
   /// the leaf's record).
   std::size_t slot_size(const Node &leaf) const { return pool_.size(pool_slot(leaf.leaf())); }
 
+  LeafStore() = default;
+  /// Deep copy, with the free ids' room for every id.
+  LeafStore(const LeafStore &o) : pool_(o.pool_), loc_(o.loc_) {
+    free_ids_.reserve(o.loc_.size());
+    free_ids_ = o.free_ids_;
+  }
+  LeafStore(LeafStore &&) noexcept = default;
+  LeafStore &operator=(const LeafStore &o) {
+    LeafStore copy(o);
+    swap(copy);
+    return *this;
+  }
+  LeafStore &operator=(LeafStore &&) noexcept = default;
+
   /// Appends `shape` with `id` to leaf n (node `leaf`), giving the leaf a
-  /// slot first if it has none; the id is located there.
-  template <class V> void push(Node &leaf, int n, V &&shape, std::uint32_t id) {
+  /// slot first if it has none; the id is located there. Strong.
+  template <class V> BVH_ALWAYS_INLINE void push(Node &leaf, int n, V &&shape, std::uint32_t id) {
     const LeafSlot had = leaf.leaf();
-    typename LeafPool<T>::Slot s = had.has_slot() ? pool_slot(had) : pool_.allocate(1);
-    if (!had.has_slot()) leaf.set_leaf(record(s));
-    pool_.push_back(s, std::forward<V>(shape), id);
+    typename LeafPool<T>::Slot s;
+    if (had.has_slot()) {
+      s = pool_slot(had);
+      pool_.push_back(s, std::forward<V>(shape), id);
+    } else {
+      s = pool_.allocate(1);
+      try {
+        pool_.push_back(s, std::forward<V>(shape), id);
+      } catch (...) {
+        pool_.release(s);
+        throw;
+      }
+    }
     loc_[id] = Loc{n, std::uint32_t(pool_.size(s) - 1)};
     leaf.set_leaf(record(s));
   }
@@ -1069,9 +1187,9 @@ public:
     leaf.set_leaf(record(s));
   }
   /// Removes shape i of `leaf`, keeping the others' order (and their ids
-  /// located); returns its id, which stays taken.
+  /// located); returns its id, which stays taken. Strong.
   std::uint32_t erase(Node &leaf, std::size_t i) {
-    const typename LeafPool<T>::Slot s = pool_slot(leaf.leaf());
+    typename LeafPool<T>::Slot s = pool_slot(leaf.leaf());
     const std::uint32_t id = pool_.ids(s)[i];
     pool_.erase(s, i);
     leaf.set_leaf(record(s));
@@ -1079,25 +1197,51 @@ public:
     for (std::size_t k = i, n = pool_.size(s); k < n; ++k) loc_[ids[k]].index = std::uint32_t(k);
     return id;
   }
-  /// Moves `node`'s shapes, with their ids, to the end of `out` and gives
-  /// its slot back (nothing for an inner node or a leaf without slot). The
-  /// ids stay taken; they are located again where the shapes land.
-  void take(Node &node, std::vector<Tagged<T>> &out) {
+  /// A leaf's slot set aside by erase_keeping(), for restore() or
+  /// discard().
+  using Kept = typename LeafPool<T>::Slot;
+  /// erase(), but leaf n's old slot, with every shape, is kept aside
+  /// (returned): restore() undoes the erase, discard() confirms it. Strong.
+  Kept erase_keeping(Node &leaf, std::size_t i) {
+    const Kept old = pool_slot(leaf.leaf());
+    const typename LeafPool<T>::Slot fresh = pool_.copy_without(old, i);
+    leaf.set_leaf(record(fresh));
+    const std::uint32_t *ids = pool_.ids(fresh);
+    for (std::size_t k = i, n = pool_.size(fresh); k < n; ++k) loc_[ids[k]].index = std::uint32_t(k);
+    return old;
+  }
+  /// Leaf n (node `leaf`) gets its kept slot back; the one it had goes.
+  void restore(Node &leaf, int n, Kept old) noexcept {
+    release(leaf);
+    leaf.set_leaf(record(old));
+    relocate(leaf, n);
+  }
+  /// Destroys a kept slot's shapes and gives it back.
+  void discard(Kept old) noexcept { pool_.release(old); }
+  /// Appends copies of `node`'s shapes, with their ids, to `out` (nothing
+  /// for an inner node or a leaf without slot); `node` is untouched.
+  void copy_out(const Node &node, std::vector<Tagged<T>> &out) const {
     if (!node.is_leaf() || !node.leaf().has_slot()) return;
-    const Span<T> v = shapes(node);
+    const Span<const T> v = shapes(node);
     const std::uint32_t *ids = this->ids(node);
-    for (std::size_t i = 0; i < v.size(); ++i) out.push_back(Tagged<T>{std::move(v[i]), ids[i]});
-    release(node);
+    for (std::size_t i = 0; i < v.size(); ++i) out.push_back(Tagged<T>{v[i], ids[i]});
+  }
+  /// Locates every id of leaf n (node `leaf`) there again (after a build
+  /// that had located them elsewhere was given up).
+  void relocate(const Node &leaf, int n) noexcept {
+    if (!leaf.is_leaf() || !leaf.leaf().has_slot()) return;
+    const std::uint32_t *ids = this->ids(leaf);
+    for (std::uint32_t i = 0, k = leaf.leaf().count; i < k; ++i) loc_[ids[i]] = Loc{n, i};
   }
   /// Destroys `node`'s shapes and gives its slot back (nothing for an inner
   /// node or a leaf without slot).
-  void release(Node &node) {
+  void release(Node &node) noexcept {
     if (!node.is_leaf() || !node.leaf().has_slot()) return;
     pool_.release(pool_slot(node.leaf()));
     node.set_leaf(LeafSlot{});
   }
 
-  /// A free id (one given back first), not yet located.
+  /// A free id (one given back first), not yet located. Strong.
   std::uint32_t new_id() {
     if (!free_ids_.empty()) {
       const std::uint32_t id = free_ids_.back();
@@ -1106,17 +1250,29 @@ public:
     }
     if (loc_.size() == std::size_t(std::numeric_limits<std::uint32_t>::max()))
       throw std::length_error("BVH::insert: more shapes than 32-bit handles can name");
+    reserve_for(free_ids_, loc_.size() + 1);
     loc_.push_back(Loc{});
     return std::uint32_t(loc_.size() - 1);
+  }
+  /// Undoes new_id() (of an insert that failed): the id is free again, as
+  /// it was. `reused`: new_id() took it from the free ids (they were not
+  /// empty), else it was the last one.
+  void unnew_id(std::uint32_t id, bool reused) noexcept {
+    loc_[id].leaf = -1;
+    if (reused)
+      free_ids_.push_back(id);
+    else
+      loc_.pop_back();
   }
   /// Ids 0 .. n - 1 taken, for construct() (the store holds no id).
   void take_first_ids(std::size_t n) {
     BVH_INVARIANT(loc_.empty(), "construct() over ids in use");
+    reserve_for(free_ids_, n);
     loc_.resize(n);
   }
   /// Gives `id` back; `none_stored`: the tree is empty, so every id is
   /// forgotten.
-  void free_id(std::uint32_t id, bool none_stored) {
+  void free_id(std::uint32_t id, bool none_stored) noexcept {
     loc_[id].leaf = -1;
     if (none_stored) {
       loc_.clear();
@@ -1136,9 +1292,9 @@ public:
 
   /// Destroys every shape; the ids stay taken (update() of the last shape
   /// inserts it again under its id).
-  void clear_shapes() { pool_ = LeafPool<T>(); }
+  void clear_shapes() noexcept { pool_ = LeafPool<T>(); }
   /// Destroys every shape and forgets every id.
-  void clear() {
+  void clear() noexcept {
     clear_shapes();
     loc_.clear();
     free_ids_.clear();
@@ -1209,14 +1365,14 @@ template <class T, class Tr> struct Core {
   }
 
   /// Drops every node and shape but keeps the ids.
-  void clear_nodes() {
+  void clear_nodes() noexcept {
     nodes.clear();
     leaves.clear_shapes();
     root = -1;
     size = 0;
   }
   /// Drops everything stored; the parameters stay.
-  void clear() {
+  void clear() noexcept {
     clear_nodes();
     leaves.clear();
   }
@@ -1235,7 +1391,7 @@ template <class T, class Tr> struct Core {
     return n;
   }
   /// Gives node n's slot back and puts it on the free list.
-  void free_node(int n) {
+  void free_node(int n) noexcept {
     leaves.release(nodes.node(n));
     nodes.release(n);
   }
@@ -1255,7 +1411,7 @@ template <class T, class Tr> struct Core {
     return box;
   }
   /// Refits the boxes from node n up, stopping where a box is unchanged.
-  void refit_up(int n) {
+  void refit_up(int n) noexcept {
     for (; n >= 0; n = nodes.info(n).parent) {
       const Box box = fitted_box(n);
       if (box == nodes.box(n)) return;
@@ -1675,8 +1831,9 @@ void build_top_down(Core<T, Tr> &core, std::vector<BuildTask<typename Rule::Stat
       }
       nodes.node(t.node).set_child(children, c);
       child[children++] = Task{c, cut[g], cut[g + 1], block, state[g]};
+      // (child by child: a build given up midway frees every node it made)
+      nodes.node(t.node).num_children = children;
     }
-    nodes.node(t.node).num_children = children;
     for (int c = children - 1; c >= 0; --c) tasks.push_back(child[c]); // built left to right
   }
 }
@@ -1688,11 +1845,9 @@ enum class Cut {
 };
 
 /// The one entry for building a subtree: at leaf `at` (owning no slot),
-/// from `shapes` (reordered). With a margin, leaves that update() left
-/// larger than their shapes come out fitted again, so the node built may
-/// have shrunk: the boxes above it shrink too.
+/// from `shapes` (reordered). If it throws, the nodes and slots it made
+/// hang under `at` (free_subtree gives them back).
 template <class T, class Tr> void build_at(Core<T, Tr> &core, int at, std::vector<Tagged<T>> &shapes, Cut how) {
-  const Box before = core.nodes.box(at);
   if (how == Cut::in_order) {
     InOrderRule<T, Tr> rule(core.traits, shapes);
     std::vector<BuildTask<typename InOrderRule<T, Tr>::State>> tasks{
@@ -1709,22 +1864,96 @@ template <class T, class Tr> void build_at(Core<T, Tr> &core, int at, std::vecto
     tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule<T, Tr>::root_state()});
     build_top_down(core, tasks, rule, nullptr);
   }
-  if (core.nodes.box(at) != before && core.nodes.info(at).parent >= 0) core.refit_up(core.nodes.info(at).parent);
 }
 
-/// Rebuilds the subtree at `at` from its own shapes, taken in leaf order.
-template <class T, class Tr> void rebuild(Core<T, Tr> &core, int at, Cut how) {
+/// Gives back every node and slot of the subtree at `at` (its shapes are
+/// destroyed). Never throws.
+template <class T, class Tr> void free_subtree(Core<T, Tr> &core, int at) noexcept {
+  for_each_postorder(core.nodes, at, [&](int n) { core.free_node(n); });
+}
+
+/// Locates every id of the subtree at `at` in its leaves again. Never throws.
+template <class T, class Tr> void relocate_subtree(Core<T, Tr> &core, int at) noexcept {
+  for_each_postorder(core.nodes, at, [&](int n) { core.leaves.relocate(core.nodes.node(n), n); });
+}
+
+/// Puts node `by` where node `at` is (root, or its parent's child): `at`'s
+/// subtree is then detached, its ids still located in `by`'s. `by` must
+/// have at's parent, child index and depth, and the parent's float copy
+/// of the box must be by's (build_beside leaves it so). Never throws.
+template <class T, class Tr> void link_in(Core<T, Tr> &core, int at, int by) noexcept {
+  const int parent = core.nodes.info(at).parent;
+  if (parent < 0)
+    core.root = by;
+  else
+    core.nodes.node(parent).set_child(core.nodes.info(at).child_index, by);
+}
+
+/// Builds, from `shapes` (reordered), a subtree to take the place of the
+/// one at `at`, which stays as it is: the new subtree's root has at's
+/// parent, child index and depth but is not linked in (link_in does that),
+/// and the ids of `shapes` are located in it. Strong: if it throws,
+/// everything it made is given back and the tree is as it was.
+template <class T, class Tr> int build_beside(Core<T, Tr> &core, int at, std::vector<Tagged<T>> &shapes, Cut how) {
+  const Info in = core.nodes.info(at);
+  const int fresh = core.new_node(in.depth, in.parent, in.child_index);
+  try {
+    build_at(core, fresh, shapes, how);
+  } catch (...) {
+    free_subtree(core, fresh);
+    relocate_subtree(core, at);
+    core.nodes.set_box(at, core.nodes.box(at)); // (the parent's float copy is at's again)
+    throw;
+  }
+  return fresh;
+}
+
+/// The subtree at `at` becomes `fresh` (made by build_beside): linked in,
+/// the old one freed, the boxes above refitted if the box changed (with a
+/// margin, leaves that update() left larger come out fitted again). Never
+/// throws.
+template <class T, class Tr> void replace_by(Core<T, Tr> &core, int at, int fresh) noexcept {
+  const bool changed = core.nodes.box(fresh) != core.nodes.box(at);
+  link_in(core, at, fresh);
+  if (core.nodes.node(at).is_leaf()) // (a split's)
+    core.free_node(at);
+  else
+    free_subtree(core, at);
+  const int parent = core.nodes.info(fresh).parent;
+  if (changed && parent >= 0) core.refit_up(parent);
+}
+
+/// Copies the shapes of the subtree at `at`, in leaf order, but shape
+/// `skip_index` of leaf `skip_leaf` (none when -1).
+template <class T, class Tr>
+std::vector<Tagged<T>> copy_subtree(const Core<T, Tr> &core, int at, int skip_leaf = -1, std::size_t skip_index = 0) {
   std::vector<Tagged<T>> shapes;
   shapes.reserve(core.nodes.info(at).count);
   walk(core.nodes, at, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-    Node &node = core.nodes.node(n);
-    core.leaves.take(node, shapes);
-    const unsigned enter = all_children(node);
-    if (n != at) core.free_node(n); // (its links stay, so the walk goes on)
-    return enter;
+    const Node &node = core.nodes.node(n);
+    if (node.is_leaf()) {
+      if (n != skip_leaf) {
+        core.leaves.copy_out(node, shapes);
+      } else {
+        const Span<const T> v = core.leaves.shapes(node);
+        const std::uint32_t *ids = core.leaves.ids(node);
+        for (std::size_t i = 0; i < v.size(); ++i)
+          if (i != skip_index) shapes.push_back(Tagged<T>{v[i], ids[i]});
+      }
+    }
+    return all_children(node);
   });
-  core.nodes.node(at).set_leaf(LeafSlot{});
-  build_at(core, at, shapes, how);
+  return shapes;
+}
+
+/// Rebuilds the subtree at `at` from copies of its own shapes, taken in
+/// leaf order; returns the new subtree's root. Strong: the old subtree
+/// goes only once the new one is complete.
+template <class T, class Tr> int rebuild(Core<T, Tr> &core, int at, Cut how) {
+  std::vector<Tagged<T>> shapes = copy_subtree(core, at);
+  const int fresh = build_beside(core, at, shapes, how);
+  replace_by(core, at, fresh);
+  return fresh;
 }
 
 /// Scenes smaller than this are built without threads.
@@ -1867,110 +2096,288 @@ template <class T, class Tr> int find_scapegoat(const Core<T, Tr> &core, int a, 
   return scapegoat;
 }
 
-/// Adds `shape` under an id already taken: descend by least area growth
-/// (choose_child), add it to that leaf, split the leaf by the build rule
-/// when it holds more than split_threshold shapes above depth_limit, then
-/// rebuild the highest lopsided node on the path (find_scapegoat).
-template <class T, class Tr> void insert_shape(Core<T, Tr> &core, const T &shape, std::uint32_t id) {
-  NodeStore &nodes = core.nodes;
-  const Box box = core.fat(box_of(core.traits, shape));
-  ++core.size;
-  if (core.root < 0) {
-    core.root = core.new_node(0, -1, 0);
-    nodes.set_box(core.root, box);
-    nodes.info(core.root).count = 1;
-    core.leaves.push(nodes.node(core.root), core.root, shape, id);
-    return;
+/// The rebalance after a change that has succeeded: rebuilds the highest
+/// lopsided node above `from` (find_scapegoat) if there is one. A rebuild
+/// is strong and only improves the balance, so if it throws the subtree
+/// simply stays as it was (the next change finds it again) and the change
+/// is not undone: the exception is not passed on.
+template <class T, class Tr> void rebalance(Core<T, Tr> &core, int scapegoat, Cut how) noexcept {
+  if (scapegoat < 0) return;
+  try {
+    rebuild(core, scapegoat, how);
+  } catch (...) {
   }
-  int n = core.root;
-  for (;;) {
-    ++nodes.info(n).count;
-    nodes.extend_box(n, box);
-    if (nodes.node(n).is_leaf()) break;
-    n = choose_child(nodes.node(n), box);
-  }
-  if (!core.is_leaf_size(nodes.info(n).count, nodes.info(n).depth)) {
-    // The leaf splits: its shapes and the new one go straight to the build
-    // (pushing first could move the slot to a larger class for nothing).
-    std::vector<Tagged<T>> shapes;
-    shapes.reserve(nodes.info(n).count);
-    core.leaves.take(nodes.node(n), shapes);
-    shapes.push_back(Tagged<T>{shape, id});
-    build_at(core, n, shapes, Cut::by_rule);
-  } else {
-    core.leaves.push(nodes.node(n), n, shape, id);
-  }
-  const int scapegoat = find_scapegoat(core, nodes.info(n).parent, n, false);
-  if (scapegoat >= 0) rebuild(core, scapegoat, Cut::by_rule);
 }
 
-/// Removes shape `index` of leaf `leaf` and returns its id (still taken),
-/// then mends the tree:
+/// insert_shape() without its rebalance: descend by least area growth
+/// (choose_child), add the shape to that leaf, split the leaf by the build
+/// rule when it holds more than split_threshold shapes above depth_limit.
+/// Returns the node the shape went to (the leaf, or the subtree its split
+/// made). Strong: if it throws, the descent's counts and boxes are undone
+/// and the tree is as it was (a split is built beside the leaf, which goes
+/// only once the new subtree is complete).
+template <class T, class Tr> BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr> &core, const T &shape, std::uint32_t id) {
+  NodeStore &nodes = core.nodes;
+  const Box box = core.fat(box_of(core.traits, shape));
+  if (core.root < 0) {
+    const int root = core.new_node(0, -1, 0);
+    try {
+      core.leaves.push(nodes.node(root), root, shape, id);
+    } catch (...) {
+      core.free_node(root);
+      throw;
+    }
+    core.root = root;
+    nodes.set_box(root, box);
+    nodes.info(root).count = 1;
+    core.size = 1;
+    return root;
+  }
+  int n = core.root;
+  Box leaf_box; // the leaf's box before: with a margin it may exceed its shapes'
+  for (;;) {
+    ++nodes.info(n).count;
+    if (nodes.node(n).is_leaf()) {
+      leaf_box = nodes.box(n);
+      nodes.extend_box(n, box);
+      break;
+    }
+    nodes.extend_box(n, box);
+    n = choose_child(nodes.node(n), box);
+  }
+  try {
+    if (!core.is_leaf_size(nodes.info(n).count, nodes.info(n).depth)) {
+      // The leaf splits: copies of its shapes and the new one go straight
+      // to the build (pushing first could move the slot to a larger class
+      // for nothing).
+      std::vector<Tagged<T>> shapes;
+      shapes.reserve(nodes.info(n).count);
+      core.leaves.copy_out(nodes.node(n), shapes);
+      shapes.push_back(Tagged<T>{shape, id});
+      const int fresh = build_beside(core, n, shapes, Cut::by_rule);
+      replace_by(core, n, fresh);
+      n = fresh;
+    } else {
+      core.leaves.push(nodes.node(n), n, shape, id);
+    }
+  } catch (...) {
+    // Undo the descent: the counts, the leaf's box, its ancestors' unions.
+    for (int m = n; m >= 0; m = nodes.info(m).parent) --nodes.info(m).count;
+    nodes.set_box(n, leaf_box);
+    if (nodes.info(n).parent >= 0) core.refit_up(nodes.info(n).parent);
+    throw;
+  }
+  ++core.size;
+  return n;
+}
+
+/// Adds `shape` under an id already taken (insert_unbalanced), then
+/// rebuilds the highest lopsided node on the path (find_scapegoat,
+/// rebalance). Strong.
+template <class T, class Tr> void insert_shape(Core<T, Tr> &core, const T &shape, std::uint32_t id) {
+  const int n = insert_unbalanced(core, shape, id);
+  rebalance(core, find_scapegoat(core, core.nodes.info(n).parent, n, false), Cut::by_rule);
+}
+
+/// What update() needs to undo an erase_at(): the leaf's old slot (kept
+/// aside) and box, or the old subtree that a mend replaced (detached).
+template <class T> struct EraseUndo {
+  int leaf = -1;                        ///< the leaf erased from (no mend)
+  typename LeafStore<T>::Kept old_slot; ///< its slot before, with the shape
+  Box leaf_box;                         ///< its box before
+  int old_root = -1;                    ///< the mended subtree, detached (a mend)
+  int fresh = -1;                       ///< what was built in its place
+};
+
+/// Decrements the counts from node n up and refits the boxes, bottom-up
+/// (above the first box that does not change, only the counts do).
+template <class T, class Tr> void uncount_up(Core<T, Tr> &core, int n) noexcept {
+  bool refit = true;
+  for (; n >= 0; n = core.nodes.info(n).parent) {
+    --core.nodes.info(n).count;
+    if (refit) {
+      const Box box = core.fitted_box(n);
+      refit = box != core.nodes.box(n);
+      if (refit) core.nodes.set_box(n, box);
+    }
+  }
+}
+
+/// Removes shape `index` of leaf `leaf` and returns its id (still taken);
+/// `*changed` gets the node where the balance check starts. It mends the
+/// tree on the way:
 ///  1. counts and tight boxes are refitted from the leaf to the root;
 ///  2. the highest ancestor left with at most split_threshold shapes, or
 ///     else the parent of a leaf left empty, is rebuilt from its shapes
 ///     (a leaf, or kWidth children again): no empty leaf, no inner node
 ///     with too few children or too few shapes;
-///  3. the highest lopsided ancestor of what changed is rebuilt
-///     (find_scapegoat), so depth stays O(log n) under any churn.
+///  3. (erase_shape) the highest lopsided ancestor of what changed is
+///     rebuilt (find_scapegoat), so depth stays O(log n) under any churn.
 /// Rebuilds here split the shapes in their leaf order (Cut::in_order), so
 /// iteration order survives an erase. A rebuild of m shapes costs O(m log
 /// m) and, as for inserts, needs Omega(m) erases below the node to recur.
-template <class T, class Tr> std::uint32_t erase_at(Core<T, Tr> &core, int leaf, std::size_t index) {
+/// Strong: the node to mend is found before anything changes and rebuilt
+/// beside the old subtree from copies. With `undo` (update()), the old
+/// slot or subtree is kept aside: undo_erase() puts it back,
+/// commit_erase() gives it back. The tree must hold more than one shape.
+template <class T, class Tr>
+std::uint32_t erase_at(Core<T, Tr> &core, int leaf, std::size_t index, int *changed, EraseUndo<T> *undo = nullptr) {
   NodeStore &nodes = core.nodes;
-  const std::uint32_t id = core.leaves.erase(nodes.node(leaf), index);
-  if (--core.size == 0) {
-    core.clear_nodes();
-    return id;
-  }
-  // 1. Refit, bottom-up (above the first box that does not change, only
-  // the counts do), and 2. find the node to mend on the way.
-  int mend = nodes.node(leaf).leaf().count == 0 ? nodes.info(leaf).parent : -1;
-  bool refit = true;
-  for (int n = leaf; n >= 0; n = nodes.info(n).parent) {
-    const std::size_t count = --nodes.info(n).count;
-    if (refit) {
-      const Box box = core.fitted_box(n);
-      refit = box != nodes.box(n);
-      if (refit) nodes.set_box(n, box);
+  BVH_INVARIANT(core.size > 1, "erase_at() of the last shape");
+  int mend = nodes.node(leaf).leaf().count == 1 ? nodes.info(leaf).parent : -1;
+  for (int n = nodes.info(leaf).parent; n >= 0; n = nodes.info(n).parent)
+    if (nodes.info(n).count - 1 <= std::size_t(core.split_threshold)) mend = n; // the highest wins
+  std::uint32_t id;
+  if (mend >= 0) {
+    id = core.leaves.ids(nodes.node(leaf))[index];
+    std::vector<Tagged<T>> shapes = copy_subtree(core, mend, leaf, index);
+    const int fresh = build_beside(core, mend, shapes, Cut::in_order);
+    // Nothing below throws.
+    link_in(core, mend, fresh);
+    if (undo) {
+      undo->old_root = mend;
+      undo->fresh = fresh;
+    } else {
+      free_subtree(core, mend);
     }
-    if (n != leaf && count <= std::size_t(core.split_threshold)) mend = n; // the highest wins
+    uncount_up(core, nodes.info(fresh).parent);
+    *changed = fresh;
+  } else {
+    if (undo) {
+      undo->leaf = leaf;
+      undo->leaf_box = nodes.box(leaf);
+      id = core.leaves.ids(nodes.node(leaf))[index];
+      undo->old_slot = core.leaves.erase_keeping(nodes.node(leaf), index);
+    } else {
+      id = core.leaves.erase(nodes.node(leaf), index);
+    }
+    uncount_up(core, leaf);
+    *changed = leaf;
   }
-  if (mend >= 0) rebuild(core, mend, Cut::in_order);
-  // 3. Balance.
-  const int scapegoat = find_scapegoat(core, mend >= 0 ? mend : leaf, -1, true);
-  if (scapegoat >= 0) rebuild(core, scapegoat, Cut::in_order);
+  --core.size;
   return id;
 }
 
-/// erase_at(), then the id is given back.
+/// Puts back what erase_at(..., undo) removed: the tree is as before it.
+template <class T, class Tr> void undo_erase(Core<T, Tr> &core, const EraseUndo<T> &undo) noexcept {
+  NodeStore &nodes = core.nodes;
+  int from;
+  if (undo.fresh >= 0) {
+    link_in(core, undo.fresh, undo.old_root);
+    nodes.set_box(undo.old_root, nodes.box(undo.old_root)); // (the parent's float copy)
+    relocate_subtree(core, undo.old_root);
+    free_subtree(core, undo.fresh);
+    from = nodes.info(undo.old_root).parent;
+  } else {
+    core.leaves.restore(nodes.node(undo.leaf), undo.leaf, undo.old_slot);
+    ++nodes.info(undo.leaf).count;
+    nodes.set_box(undo.leaf, undo.leaf_box);
+    from = nodes.info(undo.leaf).parent;
+  }
+  for (int n = from; n >= 0; n = nodes.info(n).parent) ++nodes.info(n).count;
+  if (from >= 0) core.refit_up(from);
+  ++core.size;
+}
+
+/// Confirms an erase_at(..., undo): the kept slot or subtree goes.
+template <class T, class Tr> void commit_erase(Core<T, Tr> &core, const EraseUndo<T> &undo) noexcept {
+  if (undo.fresh >= 0)
+    free_subtree(core, undo.old_root);
+  else
+    core.leaves.discard(undo.old_slot);
+}
+
+/// erase_at() and its rebalance, then the id is given back. Strong.
 template <class T, class Tr> void erase_shape(Core<T, Tr> &core, int leaf, std::size_t index) {
-  const std::uint32_t id = erase_at(core, leaf, index);
+  std::uint32_t id;
+  if (core.size == 1) {
+    id = core.leaves.ids(core.nodes.node(leaf))[index];
+    core.clear_nodes();
+  } else {
+    int changed;
+    id = erase_at(core, leaf, index, &changed);
+    rebalance(core, find_scapegoat(core, changed, -1, true), Cut::in_order);
+  }
   core.leaves.free_id(id, core.size == 0);
+}
+
+/// dst = src, strong when T's move assignment cannot throw (a copy, then
+/// the move); otherwise T's own copy assignment.
+template <class T> void assign(T &dst, const T &src) {
+  if constexpr (std::is_nothrow_move_assignable<T>::value) {
+    T copy(src);
+    dst = std::move(copy);
+  } else {
+    dst = src;
+  }
 }
 
 /// The shape of `id` becomes `moved`: in place while it fits its leaf's
 /// box (refitting above when there is no margin), else erased and inserted
-/// again under the same id.
+/// again under the same id. Strong (in place: when T's move assignment
+/// cannot throw, else as strong as T's copy assignment): if the insert
+/// throws, the erase is undone.
 template <class T, class Tr> void update_shape(Core<T, Tr> &core, std::uint32_t id, const T &moved) {
   const typename LeafStore<T>::Loc at = core.leaves.locate(id);
-  if (core.nodes.box(at.leaf).contains(box_of(core.traits, moved))) {
-    core.leaves.shapes(core.nodes.node(at.leaf))[at.index] = moved;
-    if (core.margin == 0) core.refit_up(at.leaf);
+  NodeStore &nodes = core.nodes;
+  const Box box = box_of(core.traits, moved);
+  if (nodes.box(at.leaf).contains(box) || core.size == 1) {
+    assign(core.leaves.shapes(nodes.node(at.leaf))[at.index], moved);
+    if (core.size == 1) // the last shape: its leaf is the root, fitted to it
+      nodes.set_box(at.leaf, core.fat(box));
+    else if (core.margin == 0)
+      core.refit_up(at.leaf);
     return;
   }
-  erase_at(core, at.leaf, at.index);
-  insert_shape(core, moved, id);
+  EraseUndo<T> undo;
+  int changed;
+  erase_at(core, at.leaf, at.index, &changed, &undo);
+  // The erase's rebalance comes before the insert, as erase() then insert()
+  // would do it; the subtree it replaces is kept aside until the insert
+  // has succeeded. If the rebuild throws, it is given up (as rebalance()).
+  const int a = find_scapegoat(core, changed, -1, true);
+  int a_fresh = -1;
+  if (a >= 0) {
+    try {
+      std::vector<Tagged<T>> shapes = copy_subtree(core, a);
+      a_fresh = build_beside(core, a, shapes, Cut::in_order);
+      const bool box_changed = nodes.box(a_fresh) != nodes.box(a);
+      link_in(core, a, a_fresh);
+      if (box_changed && nodes.info(a_fresh).parent >= 0) core.refit_up(nodes.info(a_fresh).parent);
+    } catch (...) {
+      a_fresh = -1;
+    }
+  }
+  int n;
+  try {
+    n = insert_unbalanced(core, moved, id);
+  } catch (...) {
+    if (a_fresh >= 0) { // the erase's state again, then before it
+      link_in(core, a_fresh, a);
+      nodes.set_box(a, nodes.box(a)); // (the parent's float copy)
+      relocate_subtree(core, a);
+      free_subtree(core, a_fresh);
+      if (nodes.info(a).parent >= 0) core.refit_up(nodes.info(a).parent);
+    }
+    undo_erase(core, undo);
+    throw;
+  }
+  commit_erase(core, undo);
+  if (a_fresh >= 0) free_subtree(core, a);
+  rebalance(core, find_scapegoat(core, nodes.info(n).parent, n, false), Cut::by_rule);
 }
 
 /// Sets the margin and recomputes every box, bottom-up: O(n).
+/// Strong: nothing changes before the pass that cannot throw.
 template <class T, class Tr> void set_margin(Core<T, Tr> &core, double m) {
-  core.margin = m > 0 && m < std::numeric_limits<double>::infinity() ? m : 0;
-  if (core.root < 0) return;
-  std::vector<int> order;
-  order.reserve(core.nodes.live());
-  for_each_preorder(core.nodes, core.root, [&](int n) { order.push_back(n); });
-  for (auto it = order.rbegin(); it != order.rend(); ++it) core.nodes.set_box(*it, core.fitted_box(*it));
+  const double margin = m > 0 && m < std::numeric_limits<double>::infinity() ? m : 0;
+  if (core.root < 0) {
+    core.margin = margin;
+    return;
+  }
+  core.margin = margin;
+  // Bottom-up without a list of nodes: nothing to allocate.
+  for_each_postorder(core.nodes, core.root, [&](int n) { core.nodes.set_box(n, core.fitted_box(n)); });
 }
 
 // ===========================================================================
@@ -2784,7 +3191,18 @@ std::vector<std::size_t> insert_disjoint(Core<T, Tr> &core, const std::vector<T>
 /// leaves, each exactly once; every node knows the tight box of its
 /// subtree. The const members only read the tree: any number of threads may
 /// call them at once while no thread changes the tree.
+///
+/// Exceptions (docs/library.txt, EXCEPTIONS): T's copy and move may throw,
+/// its destructor must not (static_assert); where stored shapes move the
+/// tree uses std::move_if_noexcept, so a T whose move may throw is copied
+/// there. Each member's comment states its guarantee: strong for insert,
+/// erase(handle), erase(iterator), update, set_margin and copy assignment;
+/// basic for construct (left empty) and erase(value); never throwing for
+/// moves, swap, clear. A Traits adaptor's copy and move must not throw.
 template <class T, class Traits = shape_traits<T>> class BVH {
+  static_assert(std::is_nothrow_destructible<T>::value, "BVH<T>: T's destructor must not throw");
+  static_assert(std::is_nothrow_copy_constructible<Traits>::value && std::is_nothrow_move_assignable<Traits>::value,
+                "BVH<T, Traits>: the traits' copy and move must not throw (moves and swap rely on it)");
   using Box = detail::Box;
   using Core = detail::Core<T, Traits>;
   /// Box types other than T: what query(box, f) and overlapping(box) take.
@@ -2807,22 +3225,33 @@ public:
       : core_(std::move(traits), split_threshold < 1 ? 1 : split_threshold,
               depth_limit <= 0 ? unlimited : depth_limit) {}
 
-  /// Deep copy (nothing recurses: every part lives in arrays).
+  /// Deep copy (nothing recurses: every part lives in arrays). If it
+  /// throws, what it had made is given back (the source is untouched).
   BVH(const BVH &) = default;
-  /// Deep copy; self-assignment is safe.
-  BVH &operator=(const BVH &) = default;
+  /// Deep copy; self-assignment is safe. Strong: copy, then swap.
+  BVH &operator=(const BVH &other) {
+    if (this != &other) {
+      BVH copy(other);
+      swap(copy);
+    }
+    return *this;
+  }
   /// Takes `other`'s shapes and parameters; `other` is left a valid empty
-  /// tree with its split_threshold and depth_limit.
+  /// tree with its split_threshold and depth_limit. Never throws.
   BVH(BVH &&other) noexcept : core_(other.core_.traits, other.core_.split_threshold, other.core_.depth_limit) {
     take(other);
   }
   /// Takes `other`'s shapes and parameters; `other` is left a valid empty
-  /// tree.
+  /// tree. Never throws.
   BVH &operator=(BVH &&other) noexcept {
     if (this != &other) take(other);
     return *this;
   }
   ~BVH() = default;
+  /// Exchanges the shapes and parameters of two trees. Never throws.
+  void swap(BVH &other) noexcept { core_.swap(other.core_); }
+  /// a.swap(b).
+  friend void swap(BVH &a, BVH &b) noexcept { a.swap(b); }
 
   /// A stored shape's name. insert() returns it; construct(elements) names
   /// elements[i] `handle{std::uint32_t(i)}`. It stays valid until that shape
@@ -2915,20 +3344,22 @@ public:
   using const_iterator = iterator;
 
   /// First shape in leaf order (end() when empty).
-  iterator begin() const { return core_.root < 0 ? end() : iterator(this, core_.nodes.leftmost_leaf(core_.root), 0); }
+  iterator begin() const noexcept {
+    return core_.root < 0 ? end() : iterator(this, core_.nodes.leftmost_leaf(core_.root), 0);
+  }
   /// One past the last shape.
-  iterator end() const { return iterator(this, -1, 0); }
+  iterator end() const noexcept { return iterator(this, -1, 0); }
 
   /// Number of stored shapes.
-  std::size_t size() const { return core_.size; }
+  std::size_t size() const noexcept { return core_.size; }
   /// True when no shape is stored.
-  bool empty() const { return core_.size == 0; }
+  bool empty() const noexcept { return core_.size == 0; }
   /// The traits (the adaptor given at construction).
-  const Traits &traits() const { return core_.traits; }
+  const Traits &traits() const noexcept { return core_.traits; }
   /// The split threshold given at construction (at least 1).
-  int split_threshold() const { return core_.split_threshold; }
+  int split_threshold() const noexcept { return core_.split_threshold; }
   /// The depth limit (`unlimited`, i.e. 0, for none).
-  int depth_limit() const { return core_.depth_limit; }
+  int depth_limit() const noexcept { return core_.depth_limit; }
   /// The box of everything stored; a default BoundingBox when empty (with
   /// this project's shapes.h an empty box, with the course's the origin).
   BoundingBox bounds() const {
@@ -2937,37 +3368,43 @@ public:
     return BoundingBox(Point(b.x0, b.y0), Point(b.x1, b.y1));
   }
   /// Number of nodes, inner and leaf.
-  std::size_t node_count() const { return core_.nodes.live(); }
+  std::size_t node_count() const noexcept { return core_.nodes.live(); }
 
   /// Chooses the build rule for later builds (course by default: the
   /// course's expected output follows it).
-  void set_build_rule(BuildRule rule) { core_.rule = rule; }
+  void set_build_rule(BuildRule rule) noexcept { core_.rule = rule; }
   /// The build rule in use.
-  BuildRule build_rule() const { return core_.rule; }
+  BuildRule build_rule() const noexcept { return core_.rule; }
   /// Threads construct() may use: 0 (the default) for
   /// std::thread::hardware_concurrency(), 1 for none besides the caller.
   /// The tree built is the same whatever the number; scenes under
   /// kParallelMin shapes are always built by the caller alone.
-  void set_build_threads(unsigned threads) { core_.build_threads = threads; }
+  void set_build_threads(unsigned threads) noexcept { core_.build_threads = threads; }
   /// The threads construct() uses for large scenes (at least 1).
   unsigned build_threads() const { return detail::threads_for(core_.build_threads); }
 
-  /// Removes every shape; every handle becomes invalid.
-  void clear() { core_.clear(); }
+  /// Removes every shape; every handle becomes invalid. Never throws.
+  void clear() noexcept { core_.clear(); }
 
   /// Replaces the contents with `elements`, built top-down by the build
   /// rule (the course's: see detail::CourseRule); elements[i] gets the
-  /// handle id i. If it throws, the tree is left empty.
+  /// handle id i. Basic guarantee: if it throws (a copy of a shape, or
+  /// memory), the tree is left empty and valid, its parameters kept, and
+  /// every old handle is invalid.
   void construct(const std::vector<T> &elements) { detail::construct(core_, elements); }
 
   /// Adds one shape (the insertion strategy: detail::insert_shape) and
-  /// returns its handle.
+  /// returns its handle. Strong: if it throws, the tree is as it was (its
+  /// shapes, their order, every handle). A rebuild for balance after the
+  /// insert that throws is given up: the shape is in, the subtree stays as
+  /// it was, and the exception is not passed on.
   handle insert(const T &shape) {
+    const bool reused = !core_.leaves.free_ids().empty();
     const std::uint32_t id = core_.leaves.new_id();
     try {
       detail::insert_shape(core_, shape, id);
     } catch (...) {
-      core_.leaves.free_id(id, core_.size == 0);
+      core_.leaves.unnew_id(id, reused);
       throw;
     }
     return handle{id};
@@ -2992,7 +3429,7 @@ public:
   }
 
   /// True when `h` names a stored shape.
-  bool contains(handle h) const { return core_.leaves.contains(h.id); }
+  bool contains(handle h) const noexcept { return core_.leaves.contains(h.id); }
   /// The stored shape named by `h` (valid: see contains()).
   const T &get(handle h) const {
     BVH_ASSERT(contains(h), "get() with a handle that names no stored shape");
@@ -3006,7 +3443,7 @@ public:
   }
 
   /// Removes the shape named by `h` (valid); `h` becomes invalid, as do
-  /// iterators.
+  /// iterators. Strong (a rebuild for balance after it: as for insert()).
   void erase(handle h) {
     BVH_ASSERT(contains(h), "erase() with a handle that names no stored shape");
     const auto at = core_.leaves.locate(h.id);
@@ -3016,7 +3453,7 @@ public:
   /// followed it (end() after the last). Every other iterator is
   /// invalidated, but the remaining shapes keep their iteration order, so
   /// erasing while iterating (`it = tree.erase(it)`) visits each shape once.
-  /// O(log n) amortized (detail::erase_at has the repairs).
+  /// O(log n) amortized (detail::erase_at has the repairs). Strong.
   iterator erase(iterator pos) {
     BVH_ASSERT(pos.tree_ == this, "erase() with an iterator of another tree (or a singular one)");
     BVH_ASSERT(pos.leaf_ >= 0, "erase(end())");
@@ -3031,7 +3468,9 @@ public:
   /// Removes every stored shape equal to `value` and returns how many there
   /// were. Only subtrees whose box holds value's box are searched. Needs
   /// `operator==` on T (the course's shapes have none: there, erase by
-  /// iterator), and compiles only when used.
+  /// iterator), and compiles only when used. Basic guarantee: one erase at
+  /// a time, each strong, so if it throws, some of the equal shapes are gone
+  /// (their handles invalid) and the tree is otherwise as it was.
   std::size_t erase(const T &value) {
     std::size_t removed = 0;
     int leaf;
@@ -3047,7 +3486,10 @@ public:
   /// erased and inserted again, as erase(h) and insert() would (iterators
   /// are invalidated), so the tree keeps insert()'s quality under any run
   /// of moves. A margin (set_margin) makes leaves' boxes larger than their
-  /// shapes, so that small moves stay inside them.
+  /// shapes, so that small moves stay inside them. Strong, h kept: if it
+  /// throws, the shape and the tree are as they were (moving out, the erase
+  /// is undone; in place, T's copy then its move assignment, so strong when
+  /// that move cannot throw, else as strong as T's copy assignment).
   void update(handle h, const T &moved) {
     BVH_ASSERT(contains(h), "update() with a handle that names no stored shape");
     detail::update_shape(core_, h.id, moved);
@@ -3058,9 +3500,10 @@ public:
   /// Box2D's "fat" boxes, which let update() absorb moves smaller than m
   /// without touching the tree, at the cost of looser boxes for queries
   /// (and larger areas in statistics()). Every box is recomputed: O(n).
-  void set_margin(double m) { detail::set_margin(core_, m); }
+  /// Never throws (nothing is allocated or copied).
+  void set_margin(double m) noexcept { detail::set_margin(core_, m); }
   /// The margin of leaves' boxes (0 unless set_margin() said otherwise).
-  double margin() const { return core_.margin; }
+  double margin() const noexcept { return core_.margin; }
 
   /// True iff some stored shape intersects `shape` (touching counts).
   /// Subtrees whose box misses the shape's box are never visited; the final

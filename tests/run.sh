@@ -197,6 +197,8 @@ unit_tests() {
   run_suite test_parse "$BUILD/test_parse"
   run_suite test_names "$BUILD/test_names"
   run_suite test_disjoint "$BUILD/test_disjoint"
+  # Fault injection: every mutating operation at its k-th copy and allocation (issue 21).
+  run_suite test_exceptions "$BUILD/test_exceptions"
   # collision() without SSE2 (BVH_NO_SIMD): the scalar fallback against the same brute force.
   BVH_TEST_SCALE=0.3 run_suite test_bvh_scalar "$BUILD/test_bvh_scalar"
 }
@@ -231,6 +233,7 @@ sanitizers() {
   BVH_TEST_SCALE=0.1 run_suite test_parse_sanitized "$BUILD/test_parse_san"
   run_suite test_names_sanitized "$BUILD/test_names_san"
   BVH_TEST_SCALE=0.3 run_suite test_disjoint_sanitized "$BUILD/test_disjoint_san"
+  BVH_TEST_SCALE=0.5 run_suite test_exceptions_sanitized "$BUILD/test_exceptions_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
     '$BUILD/bvh_san.out' -i inputs/gen_overlap_1000.triangles -o '$OUT/san.html' --depth_limit 8 --incremental \
@@ -257,6 +260,7 @@ portable() {
     run_suite test_threads_libcxx "$BUILD/test_threads_libcxx"
     run_suite test_names_libcxx "$BUILD/test_names_libcxx"
     run_suite test_disjoint_libcxx "$BUILD/test_disjoint_libcxx"
+    run_suite test_exceptions_libcxx "$BUILD/test_exceptions_libcxx"
   else
     skip "test_*_libcxx" "clang++ with libc++ is not installed (apt-get install clang libc++-dev libc++abi-dev)"
   fi
@@ -488,6 +492,9 @@ valgrind_layer() {
   BVH_TEST_SCALE=0.5 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_moving"
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_parse"
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_disjoint"
+  # (nouserintercepts: the test's own operator new, which injects the faults, stays in place)
+  BVH_TEST_SCALE=0.2 run_suite valgrind_test_exceptions "${VG[@]}" --soname-synonyms=somalloc=nouserintercepts \
+    "$BUILD/test_exceptions"
   run_case valgrind_bulk_build "${VG[@]}" ./bvh.out -i inputs/gen_1000.triangles -o "$OUT/vg_bulk.html" \
     --depth_limit 4 --visualize --print_tree
   run_case valgrind_incremental "${VG[@]}" ./bvh.out -i inputs/gen_1000.quads -o "$OUT/vg_incremental.html" \
