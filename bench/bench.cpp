@@ -36,13 +36,13 @@
 // that path with the peers installed, add -DBENCH_NO_BOOST / -DBENCH_NO_BOX2D.
 
 // insert_disjoint's step timings (bvh.h section 8b): the serial fraction
-// that ours-par prints (steps 1 and 2 parallel, 3 and 0 serial).
+// that ours-par prints (steps 1, 2 and 4 parallel, 3 and 0 serial).
 // Each step's wall seconds (bvh.h's) and the process's CPU seconds in it
 // (all threads: the work, which a loaded machine inflates less than the
 // wall time).
 #include <ctime>
 namespace bench_profile {
-inline double step_seconds[4] = {0, 0, 0, 0}, step_cpu[4] = {0, 0, 0, 0};
+inline double step_seconds[5] = {0, 0, 0, 0, 0}, step_cpu[5] = {0, 0, 0, 0, 0};
 inline double cpu_now() {
   timespec t{};
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
@@ -196,15 +196,23 @@ template <class T> Outcome discard_ours_par(const std::vector<T> &c, unsigned th
   o.ids.assign(kept.begin(), kept.end());
   const double cpu = bench_profile::cpu_now() - cpu_start;
   const double *t = bench_profile::step_seconds;
-  const double serial = t[0] + t[3], parallel = t[1] + t[2];
-  if (serial + parallel > 0)
+  const double *u = bench_profile::step_cpu;
+  const double serial = t[0] + t[3], parallel = t[1] + t[2] + t[4];
+  if (serial + parallel > 0) {
     std::cerr << "bench: insert_disjoint(" << threads << "): steps 1 (queries) " << fmt("%.4f", t[1])
-              << " s, 2 (pairs) " << fmt("%.4f", t[2]) << " s, 3 (inserts) " << fmt("%.4f", t[3])
-              << " s, other serial " << fmt("%.4f", t[0]) << " s; serial fraction of the wall time "
-              << fmt("%.3f", serial / (serial + parallel)) << "; CPU seconds, all threads: steps 1 "
-              << fmt("%.4f", bench_profile::step_cpu[1]) << ", 2 " << fmt("%.4f", bench_profile::step_cpu[2])
-              << ", 3 " << fmt("%.4f", bench_profile::step_cpu[3]) << ", other " << fmt("%.4f", bench_profile::step_cpu[0])
+              << " s, 2 (pairs) " << fmt("%.4f", t[2]) << " s, 4 (parallel inserts) " << fmt("%.4f", t[4])
+              << " s, 3 (serial inserts) " << fmt("%.4f", t[3]) << " s, other serial " << fmt("%.4f", t[0])
+              << " s; serial fraction of the wall time " << fmt("%.3f", serial / (serial + parallel))
+              << "; CPU seconds, all threads: steps 1 " << fmt("%.4f", u[1]) << ", 2 " << fmt("%.4f", u[2]) << ", 4 "
+              << fmt("%.4f", u[4]) << ", 3 " << fmt("%.4f", u[3]) << ", other " << fmt("%.4f", u[0])
               << "; whole call: " << fmt("%.4f", o.seconds) << " s wall, " << fmt("%.4f", cpu) << " s CPU\n";
+    // One line for scripts (bench/disjoint_scaling.sh): wall and CPU
+    // seconds of the parallel steps (1, 2, 4) and of the serial ones (3, 0).
+    std::cerr << "bench: disjoint-profile threads=" << threads << " n=" << c.size() << " parallel_wall="
+              << fmt("%.4f", parallel) << " serial_wall=" << fmt("%.4f", serial) << " parallel_cpu="
+              << fmt("%.4f", u[1] + u[2] + u[4]) << " serial_cpu=" << fmt("%.4f", u[0] + u[3]) << " total_wall="
+              << fmt("%.4f", o.seconds) << " total_cpu=" << fmt("%.4f", cpu) << "\n";
+  }
   if (serial + parallel <= 0)
     std::cerr << "bench: insert_disjoint(" << threads << "): " << fmt("%.4f", o.seconds) << " s wall, "
               << fmt("%.4f", cpu) << " s CPU\n";
