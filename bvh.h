@@ -528,6 +528,26 @@ template <class X> struct Scratch {
   Scratch &operator=(const Scratch &) { return *this; }
 };
 
+/// The lock that node and slot allocation take while several threads
+/// change disjoint subtrees of one tree at once (insert_disjoint's parallel
+/// inserts, section 8b), and the count of allocations taken under it: the
+/// stores' arrays were reserved beforehand, and a thread starts an insert
+/// only while that count leaves room for every thread's worst case, so no
+/// array is reallocated under another thread's reads.
+struct SharedAlloc {
+  std::mutex lock;
+  std::atomic<std::size_t> taken{0};
+};
+
+/// A store's link to the SharedAlloc in force, none outside those inserts;
+/// a copy of a store links to none.
+struct Sharing {
+  SharedAlloc *to = nullptr;
+  Sharing() = default;
+  Sharing(const Sharing &) noexcept {}
+  Sharing &operator=(const Sharing &) noexcept { return *this; }
+};
+
 /// f(args...) as "go on?": true unless f returns a bool false.
 template <class F, class... A> bool keep_going(F &f, const A &...args) {
   if constexpr (std::is_same<decltype(f(args...)), bool>::value)
@@ -551,7 +571,8 @@ constexpr double kCanvasArea = 1000.0 * 1000.0;
 // where its shapes are. `Info` is the rest: the exact double box, parent,
 // depth and the subtree's shape count. A box is thus stored twice, the
 // exact one in the node's Info and its float copy in the parent's Node;
-// NodeStore::set_box is the only writer of either.
+// NodeStore::set_box is the only writer of both (section 8b's routing
+// alone writes a float copy ahead of its box: set_parent_copy).
 
 /// Children per inner node: the course's ternary tree.
 constexpr int kWidth = 3;
@@ -634,7 +655,14 @@ public:
   BVH_ALWAYS_INLINE void set_box(int n, const Box &b) {
     Info &in = info(n);
     in.box_ = b;
-    if (in.parent < 0) return;
+    if (in.parent >= 0) set_parent_copy(n, b);
+  }
+  /// Sets only the parent's float copy of node n's box (n below the root),
+  /// ahead of n's own: section 8b's routing, whose lanes then grow n's box
+  /// to `b`, which puts the two copies in step again. Nothing else may
+  /// let them differ.
+  BVH_ALWAYS_INLINE void set_parent_copy(int n, const Box &b) {
+    const Info &in = info(n);
     Node &p = node(in.parent);
     float f[4];
     round_out(b, f);
@@ -670,18 +698,23 @@ public:
   /// A node index, from the free list first; reset() must follow. Strong:
   /// if it throws, nothing changed.
   int allocate() {
-    if (!free_.empty()) {
-      const int n = free_.back();
-      free_.pop_back();
-      return n;
+    if (sharing_.to) {
+      std::lock_guard<std::mutex> hold(sharing_.to->lock);
+      sharing_.to->taken.fetch_add(1, std::memory_order_relaxed);
+      return allocate_here();
     }
-    reserve_for(free_, nodes_.size() + 1);
-    nodes_.reserve_one(); // (then neither emplace_back throws)
-    info_.reserve_one();
-    nodes_.emplace_back();
-    info_.emplace_back();
-    return int(nodes_.size() - 1);
+    return allocate_here();
   }
+  /// Room for `spare` more nodes in the block tables, so that allocating
+  /// them never moves a table (the blocks themselves come one at a time).
+  void reserve_spare(std::size_t spare) {
+    nodes_.reserve(nodes_.size() + spare);
+    info_.reserve(info_.size() + spare);
+  }
+  /// Makes allocate() and release() take `shared`'s lock (none: nullptr).
+  void share(SharedAlloc *shared) noexcept { sharing_.to = shared; }
+  /// True while allocation is shared among threads.
+  bool shared() const { return sharing_.to != nullptr; }
   /// Grows the arrays to `total` nodes (a laid-out build's).
   void resize(std::size_t total) {
     reserve_for(free_, total);
@@ -705,7 +738,12 @@ public:
   /// links stay readable until it is reused.
   void release(int n) noexcept {
     BVH_INVARIANT(!node(n).is_leaf() || !node(n).leaf().has_slot(), "a freed leaf still owns a slot");
-    free_.push_back(n); // (never allocates: allocate() made room)
+    if (sharing_.to) {
+      std::lock_guard<std::mutex> hold(sharing_.to->lock);
+      free_.push_back(n); // (never allocates: allocate() made room)
+      return;
+    }
+    free_.push_back(n);
   }
 
   /// Nodes in the arrays, live or free.
@@ -754,9 +792,23 @@ public:
   }
 
 private:
+  int allocate_here() {
+    if (!free_.empty()) {
+      const int n = free_.back();
+      free_.pop_back();
+      return n;
+    }
+    reserve_for(free_, nodes_.size() + 1);
+    nodes_.reserve_one(); // (then neither emplace_back throws)
+    info_.reserve_one();
+    nodes_.emplace_back();
+    info_.emplace_back();
+    return int(nodes_.size() - 1);
+  }
   BlockVector<Node> nodes_;
   BlockVector<Info> info_;
   std::vector<int> free_; // indices of unused nodes, reused first
+  Sharing sharing_;
 };
 
 /// A query box rounded outwards to float, and its centre, as child_masks
@@ -907,13 +959,34 @@ public:
 
   /// An empty slot for at least `capacity` (>= 1) shapes.
   Slot allocate(std::size_t capacity) {
-    std::uint32_t cls = 0;
-    while ((std::size_t(1) << cls) < capacity) ++cls;
-    while (classes_.size() <= cls) classes_.emplace_back(std::uint32_t(classes_.size()));
-    return Slot{classes_[cls].allocate(), cls};
+    const std::uint32_t cls = class_for(capacity);
+    if (sharing_.to) {
+      std::lock_guard<std::mutex> hold(sharing_.to->lock);
+      sharing_.to->taken.fetch_add(1, std::memory_order_relaxed);
+      return allocate_here(cls);
+    }
+    return allocate_here(cls);
   }
   /// Destroys the slot's shapes and gives the slot back (never throws).
-  void release(Slot s) noexcept { classes_[s.cls].release(s.index); }
+  void release(Slot s) noexcept {
+    if (sharing_.to) {
+      std::lock_guard<std::mutex> hold(sharing_.to->lock);
+      classes_[s.cls].release(s.index);
+      return;
+    }
+    classes_[s.cls].release(s.index);
+  }
+  /// Room for `spare` more slots in every class up to the one of
+  /// `largest` shapes (made now if missing), so that allocating them never
+  /// moves an array that other threads read.
+  void reserve_spare(std::size_t spare, std::size_t largest) {
+    const std::uint32_t top = class_for(largest) + 1; // (a full slot of `largest` moves up one)
+    classes_.reserve(std::max<std::size_t>(top + 1, 64)); // (never moved while shared)
+    while (classes_.size() <= top) classes_.emplace_back(std::uint32_t(classes_.size()));
+    for (Class &c : classes_) c.reserve_spare(spare);
+  }
+  /// Makes allocate() and release() take `shared`'s lock (none: nullptr).
+  void share(SharedAlloc *shared) noexcept { sharing_.to = shared; }
 
   /// The slot's first shape.
   T *data(Slot s) { return classes_[s.cls].data(s.index); }
@@ -1047,6 +1120,12 @@ private:
       sizes.push_back(0);
       return i;
     }
+    void reserve_spare(std::size_t spare) {
+      reserve_for(sizes, sizes.size() + spare);
+      const std::size_t blocks = (sizes.size() + spare) / per_block_ + 1;
+      blocks_.reserve(blocks);
+      id_blocks_.reserve(blocks);
+    }
     void release(std::uint32_t i) noexcept {
       T *d = data(i);
       for (std::uint32_t j = 0; j < sizes[i]; ++j) d[j].~T();
@@ -1106,7 +1185,18 @@ private:
     }
   };
 
+  static std::uint32_t class_for(std::size_t capacity) {
+    std::uint32_t cls = 0;
+    while ((std::size_t(1) << cls) < capacity) ++cls;
+    return cls;
+  }
+  Slot allocate_here(std::uint32_t cls) {
+    while (classes_.size() <= cls) classes_.emplace_back(std::uint32_t(classes_.size()));
+    return Slot{classes_[cls].allocate(), cls};
+  }
+
   std::vector<Class> classes_;
+  Sharing sharing_;
 };
 
 /// The shapes of every leaf and the handle table, kept in step: each
@@ -1299,6 +1389,10 @@ public:
     loc_.clear();
     free_ids_.clear();
   }
+  /// The pool's reserve_spare() and share() (LeafPool).
+  void reserve_spare(std::size_t spare, std::size_t largest) { pool_.reserve_spare(spare, largest); }
+  void share(SharedAlloc *shared) noexcept { pool_.share(shared); }
+
   void swap(LeafStore &o) noexcept {
     std::swap(pool_, o.pool_);
     loc_.swap(o.loc_);
@@ -1410,9 +1504,10 @@ template <class T, class Tr> struct Core {
       if (nodes.info(node.child(c)).count != 0) box.extend(nodes.box(node.child(c)));
     return box;
   }
-  /// Refits the boxes from node n up, stopping where a box is unchanged.
-  void refit_up(int n) noexcept {
-    for (; n >= 0; n = nodes.info(n).parent) {
+  /// Refits the boxes from node n up, stopping where a box is unchanged
+  /// or at `stop` (not refitted; -1: above the root).
+  void refit_up(int n, int stop = -1) noexcept {
+    for (; n != stop; n = nodes.info(n).parent) {
       const Box box = fitted_box(n);
       if (box == nodes.box(n)) return;
       nodes.set_box(n, box);
@@ -1759,10 +1854,10 @@ template <class T, class Tr> struct BuildScratch {
   std::vector<BuildTask<typename CourseRule<T, Tr>::State>> tasks;
 };
 
-/// The reused item array, filled with shape(i) for i < n (input
+/// `items` (a BuildScratch's), filled with shape(i) for i < n (input
 /// position = i).
-template <class T, class Tr, class Shape> std::vector<Item<T, Tr>> &fill_items(Core<T, Tr> &core, std::size_t n, Shape &&shape) {
-  std::vector<Item<T, Tr>> &items = core.scratch.value.items;
+template <class T, class Tr, class Shape>
+std::vector<Item<T, Tr>> &fill_items(const Core<T, Tr> &core, std::vector<Item<T, Tr>> &items, std::size_t n, Shape &&shape) {
   // (clear and append, not resize: T need not be default-constructible)
   items.clear();
   items.reserve(n);
@@ -1858,9 +1953,14 @@ template <class T, class Tr> void build_at(Core<T, Tr> &core, int at, std::vecto
     std::vector<BuildTask<typename SahRule<T, Tr>::State>> tasks{{at, 0, shapes.size(), -1, SahRule<T, Tr>::root_state()}};
     build_top_down(core, tasks, rule, nullptr);
   } else {
-    CourseRule<T, Tr> rule(core.traits, fill_items(core, shapes.size(), [&](std::size_t i) -> const T & { return shapes[i].shape; }),
-                       &shapes);
-    std::vector<BuildTask<typename CourseRule<T, Tr>::State>> &tasks = core.scratch.value.tasks;
+    // Threads inserting into disjoint subtrees at once (section 8b) cannot
+    // share the tree's scratch memory.
+    BuildScratch<T, Tr> own;
+    BuildScratch<T, Tr> &scratch = core.nodes.shared() ? own : core.scratch.value;
+    CourseRule<T, Tr> rule(core.traits,
+                           fill_items(core, scratch.items, shapes.size(), [&](std::size_t i) -> const T & { return shapes[i].shape; }),
+                           &shapes);
+    std::vector<BuildTask<typename CourseRule<T, Tr>::State>> &tasks = scratch.tasks;
     tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule<T, Tr>::root_state()});
     build_top_down(core, tasks, rule, nullptr);
   }
@@ -1920,6 +2020,7 @@ template <class T, class Tr> void replace_by(Core<T, Tr> &core, int at, int fres
   else
     free_subtree(core, at);
   const int parent = core.nodes.info(fresh).parent;
+  BVH_INVARIANT(!changed || !core.nodes.shared(), "a refit above a subtree that threads share");
   if (changed && parent >= 0) core.refit_up(parent);
 }
 
@@ -1976,7 +2077,7 @@ template <class T, class Tr> void construct_by_course_rule(Core<T, Tr> &core, co
   core.nodes.resize(layout.nodes(core.size, 0));
   core.root = 0;
   core.nodes.reset(0, 0, -1, 0);
-  CourseRule<T, Tr> rule(core.traits, fill_items(core, elements.size(), [&](std::size_t i) -> const T & { return elements[i]; }),
+  CourseRule<T, Tr> rule(core.traits, fill_items(core, core.scratch.value.items, elements.size(), [&](std::size_t i) -> const T & { return elements[i]; }),
                      nullptr);
   using Task = BuildTask<typename CourseRule<T, Tr>::State>;
   std::vector<Task> tasks{{0, 0, core.size, 1, CourseRule<T, Tr>::root_state()}};
@@ -2058,6 +2159,9 @@ inline int choose_child(const Node &node, const Box &box) {
 /// A child holding more than this share of its parent's shapes makes
 /// the parent lopsided (a balanced node gives each child 1 / kWidth).
 constexpr double kLopsided = 0.6;
+/// True when a child of `heaviest` shapes makes its parent of `count`
+/// lopsided.
+inline bool lopsided(std::size_t heaviest, std::size_t count) { return double(heaviest) > kLopsided * double(count); }
 /// Subtrees smaller than this are never rebuilt for balance: their
 /// imbalance costs less than the rebuild.
 template <class T, class Tr> std::size_t min_rebuild(const Core<T, Tr> &core) {
@@ -2076,22 +2180,22 @@ template <class T, class Tr> std::size_t min_rebuild(const Core<T, Tr> &core) {
 /// count and needs Omega(m) changes to tip again, so rebuilds cost O(log n)
 /// amortised per change per level, and every level shrinks the count by at
 /// least 1 / kLopsided: depth O(log n) for any order of changes. Returns -1
-/// when no node is lopsided.
-template <class T, class Tr> int find_scapegoat(const Core<T, Tr> &core, int a, int below, bool any_child) {
+/// when no node is lopsided. The walk ends below `stop` (-1: at the root).
+template <class T, class Tr> int find_scapegoat(const Core<T, Tr> &core, int a, int below, bool any_child, int stop = -1) {
   const NodeStore &nodes = core.nodes;
   const std::size_t smallest = min_rebuild(core);
   int scapegoat = -1;
-  for (; a >= 0; below = a, a = nodes.info(a).parent) {
+  for (; a != stop; below = a, a = nodes.info(a).parent) {
     const std::size_t count = nodes.info(a).count;
-    if (count < smallest) continue;
     std::size_t heaviest = 0;
+    if (count < smallest) continue;
     if (any_child) {
       const Node &node = nodes.node(a);
       for (int c = 0; c < node.num_children; ++c) heaviest = std::max(heaviest, nodes.info(node.child(c)).count);
     } else {
       heaviest = nodes.info(below).count; // (a is below's parent: an inner node)
     }
-    if (double(heaviest) > kLopsided * double(count)) scapegoat = a; // the last found is the highest
+    if (lopsided(heaviest, count)) scapegoat = a; // the last found is the highest
   }
   return scapegoat;
 }
@@ -2109,31 +2213,20 @@ template <class T, class Tr> void rebalance(Core<T, Tr> &core, int scapegoat, Cu
   }
 }
 
-/// insert_shape() without its rebalance: descend by least area growth
-/// (choose_child), add the shape to that leaf, split the leaf by the build
-/// rule when it holds more than split_threshold shapes above depth_limit.
-/// Returns the node the shape went to (the leaf, or the subtree its split
-/// made). Strong: if it throws, the descent's counts and boxes are undone
-/// and the tree is as it was (a split is built beside the leaf, which goes
-/// only once the new subtree is complete).
-template <class T, class Tr> BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr> &core, const T &shape, std::uint32_t id) {
+/// The descent of insert_unbalanced() from node `top` down: by least area
+/// growth (choose_child), adding `box` (the shape's, fattened) to every
+/// box and the shape to every count on the way, then adding the shape to
+/// the leaf reached, which splits by the build rule when it holds more
+/// than split_threshold shapes above depth_limit. Returns the node the
+/// shape went to (the leaf, or the subtree its split made); nothing above
+/// `top` is read or written (section 8b runs it on several subtrees at
+/// once). Strong: if it throws, the counts and boxes from `top` down are
+/// undone (a split is built beside the leaf, which goes only once the new
+/// subtree is complete).
+template <class T, class Tr>
+BVH_ALWAYS_INLINE int insert_below(Core<T, Tr> &core, int top, const Box &box, const T &shape, std::uint32_t id) {
   NodeStore &nodes = core.nodes;
-  const Box box = core.fat(box_of(core.traits, shape));
-  if (core.root < 0) {
-    const int root = core.new_node(0, -1, 0);
-    try {
-      core.leaves.push(nodes.node(root), root, shape, id);
-    } catch (...) {
-      core.free_node(root);
-      throw;
-    }
-    core.root = root;
-    nodes.set_box(root, box);
-    nodes.info(root).count = 1;
-    core.size = 1;
-    return root;
-  }
-  int n = core.root;
+  int n = top;
   Box leaf_box; // the leaf's box before: with a margin it may exceed its shapes'
   for (;;) {
     ++nodes.info(n).count;
@@ -2162,11 +2255,36 @@ template <class T, class Tr> BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr>
     }
   } catch (...) {
     // Undo the descent: the counts, the leaf's box, its ancestors' unions.
-    for (int m = n; m >= 0; m = nodes.info(m).parent) --nodes.info(m).count;
+    const int stop = nodes.info(top).parent;
+    for (int m = n; m != stop; m = nodes.info(m).parent) --nodes.info(m).count;
     nodes.set_box(n, leaf_box);
-    if (nodes.info(n).parent >= 0) core.refit_up(nodes.info(n).parent);
+    if (n != top) core.refit_up(nodes.info(n).parent, stop);
     throw;
   }
+  return n;
+}
+
+/// insert_shape() without its rebalance: insert_below() from the root (or
+/// the first shape as the root leaf). Returns the node the shape went to.
+/// Strong.
+template <class T, class Tr> BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr> &core, const T &shape, std::uint32_t id) {
+  NodeStore &nodes = core.nodes;
+  const Box box = core.fat(box_of(core.traits, shape));
+  if (core.root < 0) {
+    const int root = core.new_node(0, -1, 0);
+    try {
+      core.leaves.push(nodes.node(root), root, shape, id);
+    } catch (...) {
+      core.free_node(root);
+      throw;
+    }
+    core.root = root;
+    nodes.set_box(root, box);
+    nodes.info(root).count = 1;
+    core.size = 1;
+    return root;
+  }
+  const int n = insert_below(core, core.root, box, shape, id);
   ++core.size;
   return n;
 }
@@ -3057,6 +3175,250 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> surviving_pairs(const Tr &t
   return pairs;
 }
 
+/// Step 4's share of the tree for one thread at a time: the subtree at
+/// child `child_index` of top node `parent`, and the kept candidates routed
+/// to it (positions in step 4's list, ascending).
+struct Lane {
+  int parent;
+  int child_index;
+  std::size_t count;                ///< the subtree's count once its routed candidates are in
+  Box box;                          ///< its box then
+  std::vector<std::size_t> items;   ///< routed, in input order
+  std::size_t done = 0;             ///< items inserted
+  std::exception_ptr error;         ///< thrown by items[done]
+};
+
+/// The top of the tree for step 4: the inner nodes above depth `depth`
+/// (pre-order) and, below them, the subtrees (one Lane each) that threads
+/// insert into at once. Every descent from the root passes top nodes only
+/// until it enters exactly one lane's subtree.
+struct Frontier {
+  std::vector<int> top;
+  std::vector<Lane> lanes;
+  std::vector<std::pair<int, std::size_t>> lane_of; ///< (subtree root, lane), by node
+
+  template <class T, class Tr> Frontier(const Core<T, Tr> &core, int depth) {
+    const NodeStore &nodes = core.nodes;
+    std::vector<int> stack{core.root};
+    while (!stack.empty()) {
+      const int n = stack.back();
+      stack.pop_back();
+      const Node &node = nodes.node(n);
+      if (nodes.info(n).depth < depth && !node.is_leaf()) {
+        top.push_back(n);
+        for (int c = node.num_children - 1; c >= 0; --c) stack.push_back(node.child(c));
+      } else {
+        lane_of.push_back({n, lanes.size()});
+        lanes.push_back(Lane{nodes.info(n).parent, nodes.info(n).child_index, nodes.info(n).count, nodes.box(n), {}, 0, nullptr});
+      }
+    }
+    std::sort(lane_of.begin(), lane_of.end());
+  }
+  /// The lane whose subtree root is n.
+  Lane &lane(int n) { return lanes[std::lower_bound(lane_of.begin(), lane_of.end(), std::make_pair(n, std::size_t(0)))->second]; }
+};
+
+/// Step 4, serial: keep[i] inserted for each i, in order, as the loop does.
+template <class T, class Tr>
+void insert_serially(Core<T, Tr> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
+                     std::size_t from, std::vector<std::size_t> &kept) {
+  for (std::size_t i = from; i < keep.size(); ++i) {
+    insert_new(core, candidates[keep[i]]);
+    kept.push_back(keep[i]);
+  }
+}
+
+/// The most nodes and slots one insertion into a subtree of m shapes may
+/// allocate: a split of at most m + 1 shapes and a rebuild of as many
+/// (a build of k shapes makes fewer than 2k nodes and at most k slots).
+inline std::size_t insertion_allocations(std::size_t m) { return 6 * (m + 1) + 8; }
+
+/// Step 4 after an insertion in a lane threw: brings the tree to what the
+/// loop holds when the first candidate (in input order) whose insertion
+/// throws does so, then rethrows that exception. The routed candidates
+/// not inserted are taken out of the top's counts and boxes and give their
+/// ids back; those of them before the first failure are inserted now, in
+/// order; those inserted after it are erased again. The tree is then valid
+/// and holds exactly the kept candidates before the failure, though not in
+/// the loop's shape (the erases mend it their own way) and not with the
+/// loop's ids. If an erase here throws too, that candidate stays.
+template <class T, class Tr>
+[[noreturn]] void finish_failed_lanes(Core<T, Tr> &core, const std::vector<T> &candidates,
+                                      const std::vector<std::size_t> &keep, Frontier &frontier,
+                                      const std::vector<std::uint32_t> &ids, std::size_t next) {
+  NodeStore &nodes = core.nodes;
+  std::size_t first = keep.size();
+  std::exception_ptr error;
+  for (const Lane &lane : frontier.lanes)
+    if (lane.error && lane.items[lane.done] < first) {
+      first = lane.items[lane.done];
+      error = lane.error;
+    }
+  std::vector<std::size_t> missing, unused;
+  for (const Lane &lane : frontier.lanes)
+    for (std::size_t k = lane.done; k < lane.items.size(); ++k) {
+      for (int a = lane.parent; a >= 0; a = nodes.info(a).parent) --nodes.info(a).count;
+      --core.size;
+      unused.push_back(lane.items[k]);
+      if (lane.items[k] < first) missing.push_back(lane.items[k]);
+    }
+  for (const Lane &lane : frontier.lanes) {
+    const int root = nodes.node(lane.parent).child(lane.child_index);
+    nodes.set_box(root, core.fitted_box(root));
+  }
+  for (auto a = frontier.top.rbegin(); a != frontier.top.rend(); ++a) nodes.set_box(*a, core.fitted_box(*a));
+  std::sort(unused.rbegin(), unused.rend());
+  for (std::size_t i : unused) core.leaves.free_id(ids[i - next], false);
+  std::sort(missing.begin(), missing.end());
+  for (std::size_t i : missing) {
+    try {
+      insert_new(core, candidates[keep[i]]);
+    } catch (...) {
+      first = i;
+      error = std::current_exception();
+      break;
+    }
+  }
+  for (const Lane &lane : frontier.lanes)
+    for (std::size_t k = 0; k < lane.done; ++k) {
+      if (lane.items[k] < first) continue;
+      const typename LeafStore<T>::Loc at = core.leaves.locate(ids[lane.items[k] - next]);
+      try {
+        erase_shape(core, at.leaf, at.index);
+      } catch (...) {
+      }
+    }
+  std::rethrow_exception(error);
+}
+
+/// Step 4: keep[i] inserted, in order, for every i, with exactly the loop's
+/// tree (insert_new one by one), on the crew's threads. A candidate's
+/// descent first passes the top of the tree (Frontier), then stays in one
+/// subtree below it; what it changes at the top (counts and boxes), and
+/// so which subtree it enters, depends only on the candidates before it, so
+/// the driver routes every candidate through the top in order ("routing"),
+/// and then the threads insert each subtree's candidates into it, in
+/// order, one thread per subtree at a time ("lanes"). Insertions into
+/// different subtrees touch disjoint nodes, slots and ids, and their order
+/// relative to one another changes nothing; allocation takes a lock
+/// (SharedAlloc). Where the loop would change the top itself (a rebuild of
+/// a lopsided top node), routing stops: the lanes catch up, that
+/// candidate is inserted alone, and routing starts again from a new
+/// frontier. Lanes run only on a tree without margin (boxes are then always
+/// their contents' union, so nothing in a subtree refits the top) and
+/// large enough to be worth it.
+template <class T, class Tr>
+void insert_in_order(Core<T, Tr> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
+                     unsigned threads, Crew &crew, DisjointClock &clock, std::vector<std::size_t> &kept) {
+  constexpr std::size_t kLanesMin = 4096; // a smaller tree or fewer candidates: serially
+  NodeStore &nodes = core.nodes;
+  int depth = 0; // the frontier's: about 16 subtrees a thread
+  for (std::size_t lanes = 1; lanes < 16 * std::size_t(threads); lanes *= std::size_t(kWidth)) ++depth;
+  for (std::size_t next = 0; next < keep.size();) {
+    if (core.margin != 0 || core.root < 0 || nodes.node(core.root).is_leaf() || core.size < kLanesMin ||
+        keep.size() - next < 64) {
+      insert_serially(core, candidates, keep, next, kept);
+      clock.lap(3);
+      return;
+    }
+    Frontier frontier(core, depth);
+    // Routing, until a candidate would change the top or all are routed.
+    const std::size_t smallest = min_rebuild(core);
+    std::vector<std::uint32_t> ids;
+    std::size_t end = next; // candidates [next, end) are routed
+    std::exception_ptr routing_error;
+    int path[32];
+    for (; end < keep.size(); ++end) {
+      try {
+        const Box box = core.fat(box_of(core.traits, candidates[keep[end]]));
+        int d = 0, n = core.root;
+        while (nodes.info(n).depth < depth && !nodes.node(n).is_leaf()) {
+          path[d++] = n;
+          n = choose_child(nodes.node(n), box);
+        }
+        Lane &lane = frontier.lane(n);
+        bool top_lopsided = false;
+        for (int i = d - 1; i >= 0 && !top_lopsided; --i) {
+          const std::size_t count = nodes.info(path[i]).count + 1;
+          const std::size_t below = i == d - 1 ? lane.count + 1 : nodes.info(path[i + 1]).count + 1;
+          top_lopsided = count >= smallest && lopsided(below, count);
+        }
+        if (top_lopsided) break;
+        ids.push_back(core.leaves.new_id());
+        for (int i = 0; i < d; ++i) {
+          ++nodes.info(path[i]).count;
+          nodes.extend_box(path[i], box);
+        }
+        // The subtree's count and box are the lane's to change; routing
+        // needs only the parent's copy of the box.
+        ++lane.count;
+        lane.box.extend(box);
+        nodes.set_parent_copy(n, lane.box);
+        lane.items.push_back(end);
+        ++core.size;
+      } catch (...) {
+        routing_error = std::current_exception();
+        break;
+      }
+    }
+    clock.lap(3);
+    // The lanes. The stores get room for every thread's worst insertion
+    // and for the usual allocations of all (`slack`); a lane stops when
+    // allocations have used up the slack, and finishes serially.
+    std::size_t largest = 0;
+    for (const Lane &lane : frontier.lanes) largest = std::max(largest, lane.count);
+    const std::size_t slack = 16 * (end - next) + 1024;
+    const std::size_t room = std::size_t(threads) * insertion_allocations(largest) + slack;
+    SharedAlloc shared;
+    std::atomic<bool> failed{false};
+    bool shareable = true;
+    try {
+      nodes.reserve_spare(room);
+      core.leaves.reserve_spare(room, largest + 1);
+    } catch (...) {
+      shareable = false; // (then the lanes run on this thread alone)
+    }
+    auto run_lane = [&](std::size_t k) {
+      Lane &lane = frontier.lanes[k];
+      for (; lane.done < lane.items.size(); ++lane.done) {
+        if (failed.load(std::memory_order_relaxed)) return;
+        if (nodes.shared() && shared.taken.load(std::memory_order_relaxed) > slack) return;
+        const std::size_t i = lane.items[lane.done];
+        try {
+          const T &shape = candidates[keep[i]];
+          const int top = nodes.node(lane.parent).child(lane.child_index);
+          const int n = insert_below(core, top, core.fat(box_of(core.traits, shape)), shape, ids[i - next]);
+          rebalance(core, find_scapegoat(core, nodes.info(n).parent, n, false, lane.parent), Cut::by_rule);
+        } catch (...) {
+          lane.error = std::current_exception();
+          failed = true;
+          return;
+        }
+      }
+    };
+    if (shareable && threads > 1) {
+      nodes.share(&shared);
+      core.leaves.share(&shared);
+      crew.run(frontier.lanes.size(), run_lane);
+      nodes.share(nullptr);
+      core.leaves.share(nullptr);
+      clock.lap(4);
+    }
+    for (std::size_t k = 0; k < frontier.lanes.size() && !failed; ++k) run_lane(k); // what is left
+    clock.lap(3);
+    if (failed) finish_failed_lanes(core, candidates, keep, frontier, ids, next);
+    for (std::size_t i = next; i < end; ++i) kept.push_back(keep[i]);
+    next = end;
+    if (routing_error) std::rethrow_exception(routing_error);
+    if (next < keep.size()) { // it changes the top
+      insert_new(core, candidates[keep[next]]);
+      kept.push_back(keep[next]);
+      ++next;
+      clock.lap(3);
+    }
+  }
+}
+
 /// The batches of insert_disjoint (run by the crew's driver).
 template <class T, class Tr>
 void insert_disjoint_batches(Core<T, Tr> &core, const std::vector<T> &candidates, unsigned threads, Crew &crew,
@@ -3068,7 +3430,7 @@ void insert_disjoint_batches(Core<T, Tr> &core, const std::vector<T> &candidates
   const std::size_t target = 2048 * std::size_t(threads); // survivors a batch aims at
   std::size_t batch = kMin;
   std::vector<unsigned char> hit;
-  std::vector<std::size_t> survivors, batch_kept;
+  std::vector<std::size_t> survivors, keep;
   std::vector<unsigned char> survivor_kept;
   DisjointClock clock;
   for (std::size_t start = 0; start < n;) {
@@ -3086,17 +3448,17 @@ void insert_disjoint_batches(Core<T, Tr> &core, const std::vector<T> &candidates
     for (std::size_t j = 0; j < m; ++j)
       if (!hit[j]) survivors.push_back(start + j);
     const std::size_t s = survivors.size();
-    // 2. and 3. Among themselves, in input order, and inserted.
+    // 2. and 3. Among themselves, in input order.
     survivor_kept.assign(s, 0);
+    keep.clear();
     if (s < kPairwise) {
       clock.lap(0);
-      batch_kept.clear();
       for (std::size_t r = 0; r < s; ++r) {
         const T &c = candidates[survivors[r]];
         float f[4];
         round_out(box_of(core.traits, c), f);
         bool free = true;
-        for (std::size_t i : batch_kept) {
+        for (std::size_t i : keep) {
           float g[4];
           round_out(box_of(core.traits, candidates[i]), g);
           if (g[0] <= f[2] && f[0] <= g[2] && g[1] <= f[3] && f[1] <= g[3] && core.traits.intersect(candidates[i], c)) {
@@ -3104,10 +3466,7 @@ void insert_disjoint_batches(Core<T, Tr> &core, const std::vector<T> &candidates
             break;
           }
         }
-        if (!free) continue;
-        insert_new(core, c);
-        batch_kept.push_back(survivors[r]);
-        kept.push_back(survivors[r]);
+        if (free) keep.push_back(survivors[r]);
       }
     } else {
       const auto pairs = surviving_pairs(core.traits, candidates, survivors, crew, threads, clock);
@@ -3116,12 +3475,13 @@ void insert_disjoint_batches(Core<T, Tr> &core, const std::vector<T> &candidates
         bool free = true;
         for (; p < pairs.size() && pairs[p].second == r; ++p) free = free && !survivor_kept[pairs[p].first];
         if (!free) continue;
-        insert_new(core, candidates[survivors[r]]);
         survivor_kept[r] = 1;
-        kept.push_back(survivors[r]);
+        keep.push_back(survivors[r]);
       }
     }
     clock.lap(3);
+    // 4. Inserted, in input order.
+    insert_in_order(core, candidates, keep, threads, crew, clock, kept);
     start += m;
     if (2 * s < target) batch = std::min(kMax, 2 * batch);
     else if (s > 2 * target) batch = std::max(kMin, batch / 2);

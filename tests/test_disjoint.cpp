@@ -20,6 +20,20 @@
 #include <thread>
 #include <vector>
 
+// Step 4's parallel inserts (lanes) report their laps as step 4: the lane
+// tests check that they ran.
+#include <cstddef>
+namespace lanes_probe {
+inline std::atomic<std::size_t> &laps() {
+  static std::atomic<std::size_t> n{0};
+  return n;
+}
+inline void lap(int step, double) {
+  if (step == 4) ++laps();
+}
+} // namespace lanes_probe
+#define BVH_DISJOINT_PROFILE lanes_probe::lap
+
 #include "bvh.h"
 #include "check.h"
 #include "scenes.h"
@@ -176,6 +190,51 @@ TEST(disjoint_one_huge_batch_of_survivors) {
                      "BVH_SEED=" + std::to_string(seed) + " one huge batch");
 }
 
+// Trees large enough for step 4 to insert on every thread at once (the
+// lanes: from 4,096 shapes and 64 kept candidates a batch), at every split
+// threshold, with and without a depth limit (leaves at the limit grow past
+// it, through larger slots), by both build rules, from empty and from
+// constructed trees, with rebuilds of lopsided nodes: not scaled down, so
+// that ThreadSanitizer's and valgrind's runs take the lanes too.
+TEST(disjoint_lanes_are_the_loop) {
+  const unsigned seed = base_seed() + 500;
+  for (int round = 0; round < 6; ++round) {
+    const std::string where = "BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
+    Maker make(seed + unsigned(round));
+    const int split = 1 + round % 6;
+    const int depth = round % 3 == 2 ? 5 : BVH<Disk>::unlimited;
+    const Start how = round % 2 ? Start::constructed : Start::empty;
+    // Sparse (most kept), then a patch sorted by x (lopsided subtrees).
+    std::vector<Disk> c = make.scene<Disk>(12000, 0.5);
+    std::vector<Disk> sorted = make.scene<Disk>(3000, 0.3);
+    std::sort(sorted.begin(), sorted.end(),
+              [](const Disk &a, const Disk &b) { return a.getCenter().x < b.getCenter().x; });
+    c.insert(c.end(), sorted.begin(), sorted.end());
+    const std::size_t before = lanes_probe::laps();
+    check_against_loop(make.scene<Disk>(6000, 0.5), how, c, split, depth, where);
+    CHECK(lanes_probe::laps() > before);
+  }
+  // The surface area heuristic's splits and rebuilds, and mixed shapes.
+  Maker make(seed + 10);
+  const std::vector<Shape> base = make.scene<Shape>(5000, 0.6), c = make.scene<Shape>(9000, 0.6);
+  BVH<Shape> loop(3);
+  loop.set_build_rule(BVH<Shape>::BuildRule::sah);
+  loop.construct(base);
+  for (const Shape &s : c)
+    if (!loop.collision(s)) loop.insert(s);
+  for (unsigned threads : {2u, 3u}) {
+    note("BVH_SEED=" + std::to_string(seed + 10) + " SAH, mixed shapes, threads " + std::to_string(threads));
+    BVH<Shape> tree(3);
+    tree.set_build_rule(BVH<Shape>::BuildRule::sah);
+    tree.construct(base);
+    const std::size_t before = lanes_probe::laps();
+    tree.insert_disjoint(c, threads);
+    CHECK(lanes_probe::laps() > before);
+    CHECK(tree.validate());
+    CHECK(fingerprint(tree) == fingerprint(loop));
+  }
+}
+
 TEST(disjoint_on_tiny_and_empty_inputs) {
   const unsigned seed = base_seed() + 520;
   Maker make(seed);
@@ -306,6 +365,86 @@ TEST(disjoint_rethrows_intersect_and_keeps_a_prefix) {
       fragile::poison() = int(victim);
     }
     fragile::poison() = -1;
+  }
+}
+
+// A copy that throws inside the lanes (step 4, several threads inserting
+// at once): the exception reaches the caller, and the tree is valid and
+// holds exactly the candidates the loop keeps before the one whose copy
+// threw (its insertion is the first copy of it).
+namespace fragile {
+
+struct CopyBoom : std::runtime_error {
+  CopyBoom() : std::runtime_error("copy of the poisoned candidate") {}
+};
+inline std::atomic<int> &armed() {
+  static std::atomic<int> a{-1};
+  return a;
+}
+/// A disk with its candidate index whose first copy while armed() names
+/// it throws CopyBoom.
+struct OnceFragile {
+  Disk disk;
+  int tag = -1;
+  OnceFragile(const Disk &d, int t) : disk(d), tag(t) {}
+  OnceFragile(const OnceFragile &o) : disk(o.disk), tag(o.tag) {
+    int want = tag;
+    if (armed().load() == tag && armed().compare_exchange_strong(want, -1)) throw CopyBoom();
+  }
+  OnceFragile &operator=(const OnceFragile &) = default;
+  BoundingBox getBox() const { return disk.getBox(); }
+  Point getCenter() const { return disk.getCenter(); }
+};
+inline bool intersect(const OnceFragile &a, const OnceFragile &b) { return ::intersect(a.disk, b.disk); }
+
+} // namespace fragile
+
+TEST(disjoint_rethrows_a_copy_in_the_lanes_and_holds_the_prefix) {
+  const unsigned seed = base_seed() + 660;
+  Maker make(seed);
+  std::vector<fragile::OnceFragile> c;
+  for (const Disk &d : make.scene<Disk>(16000, 0.5)) c.push_back(fragile::OnceFragile(d, int(c.size())));
+  std::vector<std::size_t> kept;
+  {
+    BVH<fragile::OnceFragile> loop(4);
+    for (std::size_t i = 0; i < c.size(); ++i)
+      if (!loop.collision(c[i])) {
+        loop.insert(c[i]);
+        kept.push_back(i);
+      }
+  }
+  for (int round = 0; round < 4; ++round) {
+    // A kept candidate well past the first 4,096 kept: inserted by a lane.
+    const std::size_t victim = kept[kept.size() / 2 + std::size_t(make.rng() % (kept.size() / 3))];
+    for (unsigned threads : {2u, 3u, 8u}) {
+      note("BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round) + " threads " +
+           std::to_string(threads) + " poisoned " + std::to_string(victim));
+      BVH<fragile::OnceFragile> tree(4);
+      const std::size_t before = lanes_probe::laps();
+      fragile::armed() = int(victim);
+      bool thrown = false;
+      try {
+        tree.insert_disjoint(c, threads);
+      } catch (const fragile::CopyBoom &) {
+        thrown = true;
+      }
+      fragile::armed() = -1;
+      CHECK(thrown);
+      CHECK(lanes_probe::laps() > before);
+      std::string why;
+      CHECK(tree.validate(&why));
+      if (!why.empty()) note(why);
+      std::vector<int> held, want;
+      for (const fragile::OnceFragile &s : tree) held.push_back(s.tag);
+      for (std::size_t i : kept)
+        if (i < victim) want.push_back(int(i));
+      std::sort(held.begin(), held.end());
+      CHECK(held == want);
+      // It goes on as the loop would: the rest of the kept ones join.
+      const std::vector<std::size_t> rest = tree.insert_disjoint(c, threads);
+      CHECK(rest.size() == kept.size() - want.size());
+      CHECK(tree.validate());
+    }
   }
 }
 
