@@ -32,7 +32,7 @@ TSAN_TESTS := $(BUILD)/test_threads_tsan $(BUILD)/test_disjoint_tsan
 # examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
-.PHONY: all check check-build test test-build test-build-gcc test-build-libcxx demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions
+.PHONY: all check check-build test test-build test-build-gcc test-build-libcxx demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions bench-disjoint
 
 all: bvh.out
 
@@ -216,3 +216,12 @@ $(BUILD)/instructions: bench/instructions.cpp bench/peers.h bench/random_disks.h
 
 bench-instructions: bvh.out $(BUILD)/bench $(BUILD)/instructions
 	bash bench/instructions.sh $(BUILD) | tee bench/results_instructions.txt
+
+# ---- make bench-disjoint (bench/disjoint_scaling.sh): insert_disjoint's serial fraction
+# of the work on W1 and W2 at 1M candidates and W2 at 10M (against Boost's loop and the
+# grid there), and the speed-ups Amdahl's law predicts from it for 1-64 cores. Raw output
+# and summary to bench/results_disjoint_scaling.txt, chart to docs/disjoint_speedup.svg.
+# RUNS=n (1M, default 5), BIG_RUNS=n (10M, default 3). On a shared machine:
+# nice -n 10 make bench-disjoint, and nothing else heavy meanwhile.
+bench-disjoint: bvh.out $(BUILD)/bench
+	$(if $(RUNS),RUNS=$(RUNS)) $(if $(BIG_RUNS),BIG_RUNS=$(BIG_RUNS)) bash bench/disjoint_scaling.sh $(BUILD)
