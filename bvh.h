@@ -2994,12 +2994,14 @@ template <class T, class Tr> bool validate(const Core<T, Tr> &core, std::string 
 //     argument order of collides().
 //  3. serial, in input order: a survivor is kept iff no earlier kept
 //     survivor of the batch intersects it (step 2's pairs, or with few
-//     survivors a direct box-then-intersect test), and a kept one is
-//     inserted (insert_shape, with its id taken as BVH::insert takes it).
+//     survivors a direct box-then-intersect test);
+//  4. the kept ones are inserted as the loop inserts them, with their ids
+//     taken as BVH::insert takes them: on a large tree, routed through
+//     its top in order and then inserted into disjoint subtrees by
+//     several threads at once (insert_in_order), else one by one.
 // A survivor misses the tree as it was at the batch's start, and since then
 // only the batch's earlier kept survivors were added: step 3 decides what
-// the loop decides, and the insert_shape calls, their ids and their order
-// are the loop's. (This relies on what collides() itself relies on: shapes
+// the loop decides, and step 4 makes the loop's insertions with its ids. (This relies on what collides() itself relies on: shapes
 // that intersect have overlapping boxes.) The batch adapts: it doubles
 // while few candidates survive the tree (the steps' fixed costs spread over
 // more) and halves while many do (step 2's pairs grow with its square).
@@ -3494,8 +3496,9 @@ void insert_disjoint_batches(Core<T, Tr> &core, const std::vector<T> &candidates
 /// those inserted, ascending. If a worker or an insertion throws, the first
 /// exception is rethrown and the tree holds what the loop holds after
 /// candidates [0, k), with k the first candidate of the batch in progress
-/// (a throw in step 1 or 2) or the candidate being decided (step 3, and
-/// with 1 thread).
+/// (a throw in step 1 or 2) or the first whose insertion threw (step 4;
+/// with 1 thread, the candidate being decided); after a throw in a lane,
+/// in another shape and with other ids than the loop's (finish_failed_lanes).
 template <class T, class Tr>
 std::vector<std::size_t> insert_disjoint(Core<T, Tr> &core, const std::vector<T> &candidates, unsigned threads) {
   std::vector<std::size_t> kept;
@@ -3783,7 +3786,9 @@ public:
   /// or from an allocation reaches the caller as itself; the tree is then
   /// valid and holds what the loop holds after some first k candidates: k
   /// is the first candidate of the batch in progress, or the candidate whose
-  /// insertion threw (with threads = 1: the candidate being decided).
+  /// insertion threw (with threads = 1: the candidate being decided). After
+  /// a throw while several threads insert at once, it holds those shapes,
+  /// but not in the loop's shape or with the loop's handles.
   std::vector<std::size_t> insert_disjoint(const std::vector<T> &candidates, unsigned threads = 0) {
     return detail::insert_disjoint(core_, candidates, threads);
   }
