@@ -546,6 +546,13 @@ struct Sharing {
   Sharing() = default;
   Sharing(const Sharing &) noexcept {}
   Sharing &operator=(const Sharing &) noexcept { return *this; }
+  /// f(), under the lock while shared; `take` counts an allocation.
+  template <class F> decltype(auto) locked(bool take, F &&f) {
+    if (!to) return f();
+    std::lock_guard<std::mutex> hold(to->lock);
+    if (take) to->taken.fetch_add(1, std::memory_order_relaxed);
+    return f();
+  }
 };
 
 /// f(args...) as "go on?": true unless f returns a bool false.
@@ -698,12 +705,7 @@ public:
   /// A node index, from the free list first; reset() must follow. Strong:
   /// if it throws, nothing changed.
   int allocate() {
-    if (sharing_.to) {
-      std::lock_guard<std::mutex> hold(sharing_.to->lock);
-      sharing_.to->taken.fetch_add(1, std::memory_order_relaxed);
-      return allocate_here();
-    }
-    return allocate_here();
+    return sharing_.locked(true, [&] { return allocate_here(); });
   }
   /// Room for `spare` more nodes in the block tables, so that allocating
   /// them never moves a table (the blocks themselves come one at a time).
@@ -738,12 +740,7 @@ public:
   /// links stay readable until it is reused.
   void release(int n) noexcept {
     BVH_INVARIANT(!node(n).is_leaf() || !node(n).leaf().has_slot(), "a freed leaf still owns a slot");
-    if (sharing_.to) {
-      std::lock_guard<std::mutex> hold(sharing_.to->lock);
-      free_.push_back(n); // (never allocates: allocate() made room)
-      return;
-    }
-    free_.push_back(n);
+    sharing_.locked(false, [&] { free_.push_back(n); }); // (never allocates: allocate() made room)
   }
 
   /// Nodes in the arrays, live or free.
@@ -960,21 +957,11 @@ public:
   /// An empty slot for at least `capacity` (>= 1) shapes.
   Slot allocate(std::size_t capacity) {
     const std::uint32_t cls = class_for(capacity);
-    if (sharing_.to) {
-      std::lock_guard<std::mutex> hold(sharing_.to->lock);
-      sharing_.to->taken.fetch_add(1, std::memory_order_relaxed);
-      return allocate_here(cls);
-    }
-    return allocate_here(cls);
+    return sharing_.locked(true, [&] { return allocate_here(cls); });
   }
   /// Destroys the slot's shapes and gives the slot back (never throws).
   void release(Slot s) noexcept {
-    if (sharing_.to) {
-      std::lock_guard<std::mutex> hold(sharing_.to->lock);
-      classes_[s.cls].release(s.index);
-      return;
-    }
-    classes_[s.cls].release(s.index);
+    sharing_.locked(false, [&] { classes_[s.cls].release(s.index); });
   }
   /// Room for `spare` more slots in every class up to the one of
   /// `largest` shapes (made now if missing), so that allocating them never
@@ -2187,8 +2174,8 @@ template <class T, class Tr> int find_scapegoat(const Core<T, Tr> &core, int a, 
   int scapegoat = -1;
   for (; a != stop; below = a, a = nodes.info(a).parent) {
     const std::size_t count = nodes.info(a).count;
-    std::size_t heaviest = 0;
     if (count < smallest) continue;
+    std::size_t heaviest = 0;
     if (any_child) {
       const Node &node = nodes.node(a);
       for (int c = 0; c < node.num_children; ++c) heaviest = std::max(heaviest, nodes.info(node.child(c)).count);
