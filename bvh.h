@@ -530,13 +530,38 @@ template <class X> struct Scratch {
 
 /// The lock that node and slot allocation take while several threads
 /// change disjoint subtrees of one tree at once (insert_disjoint's parallel
-/// inserts, section 8b), and the count of allocations taken under it: the
-/// stores' arrays were reserved beforehand, and a thread starts an insert
-/// only while that count leaves room for every thread's worst case, so no
-/// array is reallocated under another thread's reads.
+/// inserts, section 8b), mostly a chunk at a time for a LaneCache, and the
+/// count of nodes and slots taken under it: the stores' arrays were
+/// reserved beforehand, and a thread starts an insert only while that count
+/// leaves room for every thread's worst case, so no array is reallocated
+/// under another thread's reads.
 struct SharedAlloc {
   std::mutex lock;
   std::atomic<std::size_t> taken{0};
+};
+
+/// One lane's own nodes and slots while lanes share a tree (section 8b):
+/// taken from the stores a chunk at a time under SharedAlloc's lock, and
+/// those the lane gives back, reused first, so that a lane seldom takes
+/// the lock and its subtree's nodes lie near each other. What is left goes
+/// back to the stores when the lanes end. Its lists' room is reserved
+/// before the lanes start, so giving back never allocates.
+struct LaneCache {
+  /// Nodes or slots taken under the lock at a time.
+  static constexpr std::size_t kChunk = 32;
+  std::vector<int> nodes;                        ///< free nodes of the lane's
+  std::vector<std::vector<std::uint32_t>> slots; ///< free slots of the lane's, by class
+  /// Room for the chunks of nodes and of slots of `classes` classes.
+  void reserve(std::size_t classes) {
+    nodes.reserve(2 * kChunk);
+    slots.resize(classes);
+    for (std::vector<std::uint32_t> &c : slots) c.reserve(2 * kChunk);
+  }
+  /// The cache of the lane this thread runs (none outside a lane).
+  static LaneCache *&current() noexcept {
+    static thread_local LaneCache *lane = nullptr;
+    return lane;
+  }
 };
 
 /// A store's link to the SharedAlloc in force, none outside those inserts;
@@ -552,6 +577,31 @@ struct Sharing {
     std::lock_guard<std::mutex> hold(to->lock);
     if (take) to->taken.fetch_add(1, std::memory_order_relaxed);
     return f();
+  }
+  /// The running lane's list `own` (LaneCache) refilled, when empty, with
+  /// up to kChunk items of take() under the lock: the first may throw
+  /// (then nothing changed), the others stop at a throw.
+  template <class Item, class F> void refill(std::vector<Item> &own, F &&take) {
+    if (!own.empty()) return;
+    std::lock_guard<std::mutex> hold(to->lock);
+    own.push_back(take());
+    try {
+      while (own.size() < LaneCache::kChunk) own.push_back(take());
+    } catch (...) {
+    }
+    to->taken.fetch_add(own.size(), std::memory_order_relaxed);
+  }
+  /// `item` onto the running lane's list `own`; a full list first gives
+  /// half of its items back through give(item) under the lock.
+  template <class Item, class F> void give_back(std::vector<Item> &own, Item item, F &&give) noexcept {
+    if (own.size() == own.capacity()) {
+      std::lock_guard<std::mutex> hold(to->lock);
+      while (own.size() > LaneCache::kChunk) {
+        give(own.back());
+        own.pop_back();
+      }
+    }
+    own.push_back(item); // (never allocates: room made above)
   }
 };
 
@@ -705,7 +755,13 @@ public:
   /// A node index, from the free list first; reset() must follow. Strong:
   /// if it throws, nothing changed.
   int allocate() {
-    return sharing_.locked(true, [&] { return allocate_here(); });
+    if (!sharing_.to) return allocate_here();
+    LaneCache *own = LaneCache::current();
+    if (!own) return sharing_.locked(true, [&] { return allocate_here(); });
+    sharing_.refill(own->nodes, [&] { return allocate_here(); });
+    const int n = own->nodes.back();
+    own->nodes.pop_back();
+    return n;
   }
   /// Room for `spare` more nodes in the block tables, so that allocating
   /// them never moves a table (the blocks themselves come one at a time).
@@ -740,7 +796,16 @@ public:
   /// links stay readable until it is reused.
   void release(int n) noexcept {
     BVH_INVARIANT(!node(n).is_leaf() || !node(n).leaf().has_slot(), "a freed leaf still owns a slot");
-    sharing_.locked(false, [&] { free_.push_back(n); }); // (never allocates: allocate() made room)
+    // (free_ never allocates: allocate() made room)
+    if (LaneCache *own = sharing_.to ? LaneCache::current() : nullptr)
+      sharing_.give_back(own->nodes, n, [&](int m) { free_.push_back(m); });
+    else
+      sharing_.locked(false, [&] { free_.push_back(n); });
+  }
+  /// Takes back the nodes a lane's cache holds (the lanes have ended).
+  void take_back(std::vector<int> &own) noexcept {
+    for (int n : own) free_.push_back(n); // (never allocates: allocate() made room)
+    own.clear();
   }
 
   /// Nodes in the arrays, live or free.
@@ -957,11 +1022,34 @@ public:
   /// An empty slot for at least `capacity` (>= 1) shapes.
   Slot allocate(std::size_t capacity) {
     const std::uint32_t cls = class_for(capacity);
-    return sharing_.locked(true, [&] { return allocate_here(cls); });
+    if (!sharing_.to) return allocate_here(cls);
+    LaneCache *own = LaneCache::current();
+    if (!own || cls >= own->slots.size()) return sharing_.locked(true, [&] { return allocate_here(cls); });
+    std::vector<std::uint32_t> &list = own->slots[cls];
+    sharing_.refill(list, [&] { return classes_[cls].allocate(); });
+    const Slot s{list.back(), cls};
+    list.pop_back();
+    return s;
   }
   /// Destroys the slot's shapes and gives the slot back (never throws).
   void release(Slot s) noexcept {
-    sharing_.locked(false, [&] { classes_[s.cls].release(s.index); });
+    LaneCache *own = sharing_.to ? LaneCache::current() : nullptr;
+    if (own && s.cls < own->slots.size()) {
+      Class &c = classes_[s.cls];
+      c.clear(s.index);
+      sharing_.give_back(own->slots[s.cls], s.index, [&](std::uint32_t i) { c.free_slots.push_back(i); });
+    } else {
+      sharing_.locked(false, [&] { classes_[s.cls].release(s.index); });
+    }
+  }
+  /// The number of classes (a LaneCache's lists of slots).
+  std::size_t class_count() const { return classes_.size(); }
+  /// Takes back the slots a lane's cache holds (the lanes have ended).
+  void take_back(std::vector<std::vector<std::uint32_t>> &own) noexcept {
+    for (std::size_t cls = 0; cls < own.size(); ++cls) {
+      for (std::uint32_t i : own[cls]) classes_[cls].free_slots.push_back(i); // (never allocates)
+      own[cls].clear();
+    }
   }
   /// Room for `spare` more slots in every class up to the one of
   /// `largest` shapes (made now if missing), so that allocating them never
@@ -1114,10 +1202,14 @@ private:
       id_blocks_.reserve(blocks);
     }
     void release(std::uint32_t i) noexcept {
+      clear(i);
+      free_slots.push_back(i); // (never allocates: allocate() made room)
+    }
+    /// Destroys slot i's shapes.
+    void clear(std::uint32_t i) noexcept {
       T *d = data(i);
       for (std::uint32_t j = 0; j < sizes[i]; ++j) d[j].~T();
       sizes[i] = 0;
-      free_slots.push_back(i); // (never allocates: allocate() made room)
     }
     template <class V> void construct(std::uint32_t i, V &&v, std::uint32_t id) {
       ::new (static_cast<void *>(data(i) + sizes[i])) T(std::forward<V>(v));
@@ -1379,6 +1471,8 @@ public:
   /// The pool's reserve_spare() and share() (LeafPool).
   void reserve_spare(std::size_t spare, std::size_t largest) { pool_.reserve_spare(spare, largest); }
   void share(SharedAlloc *shared) noexcept { pool_.share(shared); }
+  std::size_t class_count() const { return pool_.class_count(); }
+  void take_back(std::vector<std::vector<std::uint32_t>> &own) noexcept { pool_.take_back(own); }
 
   void swap(LeafStore &o) noexcept {
     std::swap(pool_, o.pool_);
@@ -3175,6 +3269,7 @@ struct Lane {
   std::vector<std::size_t> items;   ///< routed, in input order
   std::size_t done = 0;             ///< items inserted
   std::exception_ptr error;         ///< thrown by items[done]
+  LaneCache cache;                  ///< its own nodes and slots while shared
 };
 
 /// The top of the tree for step 4: the inner nodes above depth `depth`
@@ -3198,7 +3293,7 @@ struct Frontier {
         for (int c = node.num_children - 1; c >= 0; --c) stack.push_back(node.child(c));
       } else {
         lane_of.push_back({n, lanes.size()});
-        lanes.push_back(Lane{nodes.info(n).parent, nodes.info(n).child_index, nodes.info(n).count, nodes.box(n), {}, 0, nullptr});
+        lanes.push_back(Lane{nodes.info(n).parent, nodes.info(n).child_index, nodes.info(n).count, nodes.box(n), {}, 0, nullptr, {}});
       }
     }
     std::sort(lane_of.begin(), lane_of.end());
@@ -3356,19 +3451,29 @@ void insert_in_order(Core<T, Tr> &core, const std::vector<T> &candidates, const 
     // allocations have used up the slack, and finishes serially.
     std::size_t largest = 0;
     for (const Lane &lane : frontier.lanes) largest = std::max(largest, lane.count);
-    const std::size_t slack = 16 * (end - next) + 1024;
-    const std::size_t room = std::size_t(threads) * insertion_allocations(largest) + slack;
+    // Lane caches hold up to two chunks of nodes and of each class's slots.
+    std::size_t classes = 2; // (those reserve_spare() below makes, at least)
+    while ((std::size_t(1) << (classes - 2)) < largest + 1) ++classes;
+    const std::size_t kinds = 1 + std::max(classes, core.leaves.class_count());
+    const std::size_t cached = 2 * LaneCache::kChunk * kinds;
+    const std::size_t slack = 16 * (end - next) + frontier.lanes.size() * cached + 1024;
+    const std::size_t room = std::size_t(threads) * (insertion_allocations(largest) + cached) + slack;
     SharedAlloc shared;
     std::atomic<bool> failed{false};
     bool shareable = true;
     try {
       nodes.reserve_spare(room);
       core.leaves.reserve_spare(room, largest + 1);
+      for (Lane &lane : frontier.lanes) lane.cache.reserve(core.leaves.class_count());
     } catch (...) {
       shareable = false; // (then the lanes run on this thread alone)
     }
     auto run_lane = [&](std::size_t k) {
       Lane &lane = frontier.lanes[k];
+      struct InLane { // (this thread's allocations go to the lane's cache meanwhile)
+        explicit InLane(LaneCache *cache) { LaneCache::current() = cache; }
+        ~InLane() { LaneCache::current() = nullptr; }
+      } in_lane(&lane.cache);
       for (; lane.done < lane.items.size(); ++lane.done) {
         if (failed.load(std::memory_order_relaxed)) return;
         if (nodes.shared() && shared.taken.load(std::memory_order_relaxed) > slack) return;
@@ -3391,6 +3496,10 @@ void insert_in_order(Core<T, Tr> &core, const std::vector<T> &candidates, const 
       crew.run(frontier.lanes.size(), run_lane);
       nodes.share(nullptr);
       core.leaves.share(nullptr);
+      for (Lane &lane : frontier.lanes) {
+        nodes.take_back(lane.cache.nodes);
+        core.leaves.take_back(lane.cache.slots);
+      }
       clock.lap(4);
     }
     for (std::size_t k = 0; k < frontier.lanes.size() && !failed; ++k) run_lane(k); // what is left
