@@ -631,10 +631,13 @@ constexpr double kCanvasArea = 1000.0 * 1000.0;
 // NodeStore::set_box is the only writer of both (section 8b's routing
 // alone writes a float copy ahead of its box: set_parent_copy).
 
-/// Children per inner node: the course's ternary tree.
-constexpr int kWidth = 3;
-/// Bits 0 .. kWidth - 1: one per child.
-constexpr unsigned kAllChildren = (1u << kWidth) - 1;
+/// Children per inner node of the course's ternary tree, the default
+/// width (BVH<T, Width>).
+constexpr int kCourseWidth = 3;
+/// The widths a tree may have.
+constexpr int kMinWidth = 2, kMaxWidth = 8;
+/// Bits 0 .. w - 1: one per child.
+constexpr unsigned child_bits(int w) { return (1u << w) - 1; }
 
 /// Where a leaf's shapes are: a slot of the leaf store (its class, i.e. a
 /// capacity of 1 << cls, and its index in that class) and how many shapes
@@ -648,9 +651,10 @@ struct LeafSlot {
   bool has_slot() const { return cls != kNoSlot; }
 };
 
-/// A node as queries read it.
-struct Node {
-  float lo_x[kWidth], lo_y[kWidth], hi_x[kWidth], hi_y[kWidth]; // children's boxes, rounded outwards
+/// A node as queries read it, of a tree of width W.
+template <int W> struct Node {
+  static_assert(W >= kMinWidth && W <= kMaxWidth, "a node has 2 to 8 children");
+  float lo_x[W], lo_y[W], hi_x[W], hi_y[W]; // children's boxes, rounded outwards
   /// True for a leaf.
   bool is_leaf() const { return num_children == 0; }
   /// Inner node: the index of child c (< num_children).
@@ -672,11 +676,11 @@ struct Node {
 private:
   // An inner node's children, or a leaf's LeafSlot (index, class, count):
   // a leaf's shapes are found from this line alone.
-  std::int32_t link_[kWidth] = {0, std::int32_t(LeafSlot::kNoSlot), 0};
+  std::int32_t link_[W < 3 ? 3 : W] = {0, std::int32_t(LeafSlot::kNoSlot), 0};
 };
 // (the fields are in this order so that a 4-lane load of a float row stays
-// inside the node: child_masks masks the extra lane off)
-static_assert(kWidth == 3 && sizeof(Node) == 64, "a ternary Node is one 64-byte cache line");
+// inside the node: child_masks masks the extra lanes off)
+static_assert(sizeof(Node<kCourseWidth>) == 64, "a ternary Node is one 64-byte cache line");
 
 /// The rest of a node: exact geometry and links.
 class Info {
@@ -689,15 +693,18 @@ public:
   std::size_t count = 0;        ///< shapes in the subtree
 
 private:
-  friend class NodeStore;
+  template <int> friend class NodeStore;
   Box box_;
 };
 
-/// The node arrays and the list of free nodes. Owns both copies of every
-/// box: set_box() writes a node's exact box and its parent's float copy
-/// together, so they never disagree.
-class NodeStore {
+/// The node arrays and the list of free nodes of a tree of width W. Owns
+/// both copies of every box: set_box() writes a node's exact box and its
+/// parent's float copy together, so they never disagree.
+template <int W> class NodeStore {
 public:
+  using Node = bvh::detail::Node<W>;
+  /// Children per inner node, at most.
+  static constexpr int kWidth = W;
   /// Node n's hot part.
   Node &node(int n) { return nodes_[std::size_t(n)]; }
   const Node &node(int n) const { return nodes_[std::size_t(n)]; }
@@ -740,17 +747,17 @@ public:
 
   NodeStore() = default;
   /// Deep copy, with the free list's room for every node.
-  NodeStore(const NodeStore &o) : nodes_(o.nodes_), info_(o.info_) {
+  NodeStore(const NodeStore<W> &o) : nodes_(o.nodes_), info_(o.info_) {
     free_.reserve(o.nodes_.size());
     free_ = o.free_;
   }
-  NodeStore(NodeStore &&) noexcept = default;
-  NodeStore &operator=(const NodeStore &o) {
+  NodeStore(NodeStore<W> &&) noexcept = default;
+  NodeStore<W> &operator=(const NodeStore<W> &o) {
     NodeStore copy(o);
     swap(copy);
     return *this;
   }
-  NodeStore &operator=(NodeStore &&) noexcept = default;
+  NodeStore<W> &operator=(NodeStore<W> &&) noexcept = default;
 
   /// A node index, from the free list first; reset() must follow. Strong:
   /// if it throws, nothing changed.
@@ -820,7 +827,7 @@ public:
     info_.clear();
     free_.clear();
   }
-  void swap(NodeStore &o) noexcept {
+  void swap(NodeStore<W> &o) noexcept {
     nodes_.swap(o.nodes_);
     info_.swap(o.info_);
     free_.swap(o.free_);
@@ -901,21 +908,28 @@ struct Probe {
 /// first). With SSE2 every child is tested in one 4-lane compare per bound
 /// (the fourth lane reads the next field of the node and is masked off).
 /// BVH_NO_SIMD forces the scalar path.
-inline void child_masks(const Node &node, const Probe &p, unsigned &hits, unsigned &near) {
+template <int W> inline void child_masks(const Node<W> &node, const Probe &p, unsigned &hits, unsigned &near) {
   const unsigned live = (1u << node.num_children) - 1;
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
-  const __m128 lx = _mm_loadu_ps(node.lo_x), ly = _mm_loadu_ps(node.lo_y);
-  const __m128 hx = _mm_loadu_ps(node.hi_x), hy = _mm_loadu_ps(node.hi_y);
-  const __m128 meets = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.hi_x), _mm_cmple_ps(p.lo_x, hx)),
-                                  _mm_and_ps(_mm_cmple_ps(ly, p.hi_y), _mm_cmple_ps(p.lo_y, hy)));
-  const __m128 holds = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.mid_x), _mm_cmple_ps(p.mid_x, hx)),
-                                  _mm_and_ps(_mm_cmple_ps(ly, p.mid_y), _mm_cmple_ps(p.mid_y, hy)));
-  hits = unsigned(_mm_movemask_ps(meets)) & live;
-  near = unsigned(_mm_movemask_ps(holds)) & hits;
+  // Four children a pass; the lanes past W read the next row (or, after
+  // hi_y, the links) and are masked off.
+  unsigned meets_bits = 0, holds_bits = 0;
+  for (int g = 0; g < W; g += 4) {
+    const __m128 lx = _mm_loadu_ps(node.lo_x + g), ly = _mm_loadu_ps(node.lo_y + g);
+    const __m128 hx = _mm_loadu_ps(node.hi_x + g), hy = _mm_loadu_ps(node.hi_y + g);
+    const __m128 meets = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.hi_x), _mm_cmple_ps(p.lo_x, hx)),
+                                    _mm_and_ps(_mm_cmple_ps(ly, p.hi_y), _mm_cmple_ps(p.lo_y, hy)));
+    const __m128 holds = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.mid_x), _mm_cmple_ps(p.mid_x, hx)),
+                                    _mm_and_ps(_mm_cmple_ps(ly, p.mid_y), _mm_cmple_ps(p.mid_y, hy)));
+    meets_bits |= unsigned(_mm_movemask_ps(meets)) << g;
+    holds_bits |= unsigned(_mm_movemask_ps(holds)) << g;
+  }
+  hits = meets_bits & live;
+  near = holds_bits & hits;
 #else
   hits = 0;
   near = 0;
-  for (int c = 0; c < kWidth; ++c) {
+  for (int c = 0; c < W; ++c) {
     hits |= unsigned((node.lo_x[c] <= p.hi_x) & (p.lo_x <= node.hi_x[c]) & (node.lo_y[c] <= p.hi_y) &
                      (p.lo_y <= node.hi_y[c]))
             << c;
@@ -931,20 +945,26 @@ inline void child_masks(const Node &node, const Probe &p, unsigned &hits, unsign
 /// walk()'s visit result: bit c enters child c (c < num_children); bit
 /// kFirst + c enters it before every child of the low bits; kStop ends
 /// the walk.
-constexpr unsigned kFirst = 4u, kStop = 1u << 8;
-static_assert(kWidth <= int(kFirst), "the 'first' bits sit above the child bits");
+constexpr unsigned kFirst = 8u, kStop = 1u << 16;
+static_assert(kMaxWidth <= int(kFirst), "the 'first' bits sit above the child bits");
 
 /// Pushes the children `enter` names (walk()'s visit result) so that they
 /// pop in order: the "first" group, then the rest, each left to right.
-BVH_ALWAYS_INLINE void push_children(IndexStack &stack, const Node &node, unsigned enter) {
-  const unsigned first = enter >> kFirst, later = enter & ~first & kAllChildren;
-  // Unrolled: this is collision()'s inner loop.
-  if (later & 4u) stack.push(node.child(2));
-  if (later & 2u) stack.push(node.child(1));
-  if (later & 1u) stack.push(node.child(0));
-  if (first & 4u) stack.push(node.child(2));
-  if (first & 2u) stack.push(node.child(1));
-  if (first & 1u) stack.push(node.child(0));
+template <int W> BVH_ALWAYS_INLINE void push_children(IndexStack &stack, const Node<W> &node, unsigned enter) {
+  const unsigned first = enter >> kFirst, later = enter & ~first & child_bits(W);
+  if constexpr (W == 3) { // unrolled: this is collision()'s inner loop
+    if (later & 4u) stack.push(node.child(2));
+    if (later & 2u) stack.push(node.child(1));
+    if (later & 1u) stack.push(node.child(0));
+    if (first & 4u) stack.push(node.child(2));
+    if (first & 2u) stack.push(node.child(1));
+    if (first & 1u) stack.push(node.child(0));
+  } else {
+    for (int c = W - 1; c >= 0; --c)
+      if (later >> c & 1u) stack.push(node.child(c));
+    for (int c = W - 1; c >= 0; --c)
+      if (first >> c & 1u) stack.push(node.child(c));
+  }
 }
 
 /// The one depth-first traversal (collision, the queries, find_equal, the
@@ -953,13 +973,13 @@ BVH_ALWAYS_INLINE void push_children(IndexStack &stack, const Node &node, unsign
 /// enter (none for a leaf) or kStop. Returns false when a visit stopped it.
 /// overlapping()'s iterator runs the same steps with its stack kept between
 /// calls.
-template <class Visit> BVH_ALWAYS_INLINE bool walk(const NodeStore &nodes, int from, Visit &&visit) {
+template <int W, class Visit> BVH_ALWAYS_INLINE bool walk(const NodeStore<W> &nodes, int from, Visit &&visit) {
   IndexStack stack;
   int n = from;
   for (;;) {
     const unsigned enter = visit(n);
     if (enter & kStop) return false;
-    const Node &node = nodes.node(n);
+    const Node<W> &node = nodes.node(n);
     if (!node.is_leaf()) push_children(stack, node, enter);
     if (stack.empty()) return true;
     n = stack.pop();
@@ -967,11 +987,11 @@ template <class Visit> BVH_ALWAYS_INLINE bool walk(const NodeStore &nodes, int f
 }
 
 /// walk()'s visit result that enters every child of `node`.
-inline unsigned all_children(const Node &node) { return (1u << node.num_children) - 1; }
+template <int W> inline unsigned all_children(const Node<W> &node) { return (1u << node.num_children) - 1; }
 
 /// Calls f(n) on every node under `from` in pre-order (children left to
 /// right).
-template <class F> void for_each_preorder(const NodeStore &nodes, int from, F &&f) {
+template <int W, class F> void for_each_preorder(const NodeStore<W> &nodes, int from, F &&f) {
   if (from < 0) return;
   walk(nodes, from, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
     f(n);
@@ -983,7 +1003,7 @@ template <class F> void for_each_preorder(const NodeStore &nodes, int from, F &&
 /// their parent. Without a stack: it climbs by the nodes' parent links,
 /// so it allocates nothing and never throws; f may free the node it is
 /// given (a freed node's links stay readable until it is reused).
-template <class F> void for_each_postorder(const NodeStore &nodes, int from, F &&f) noexcept {
+template <int W, class F> void for_each_postorder(const NodeStore<W> &nodes, int from, F &&f) noexcept {
   int n = nodes.leftmost_leaf(from);
   for (;;) {
     if (n == from) {
@@ -1292,21 +1312,21 @@ public:
   };
 
   /// The shapes of `leaf` (a leaf that owns a slot).
-  BVH_ALWAYS_INLINE Span<const T> shapes(const Node &leaf) const {
+  template <int W> BVH_ALWAYS_INLINE Span<const T> shapes(const Node<W> &leaf) const {
     const LeafSlot s = leaf.leaf();
     BVH_INVARIANT(leaf.is_leaf() && s.has_slot(), "shapes of a node that owns none");
     return {pool_.data(pool_slot(s)), s.count};
   }
-  BVH_ALWAYS_INLINE Span<T> shapes(Node &leaf) {
+  template <int W> BVH_ALWAYS_INLINE Span<T> shapes(Node<W> &leaf) {
     const LeafSlot s = leaf.leaf();
     BVH_INVARIANT(leaf.is_leaf() && s.has_slot(), "shapes of a node that owns none");
     return {pool_.data(pool_slot(s)), s.count};
   }
   /// The ids of `leaf`'s shapes, in the same order.
-  const std::uint32_t *ids(const Node &leaf) const { return pool_.ids(pool_slot(leaf.leaf())); }
+  template <int W> const std::uint32_t *ids(const Node<W> &leaf) const { return pool_.ids(pool_slot(leaf.leaf())); }
   /// The number of shapes in the slot itself (validate compares it with
   /// the leaf's record).
-  std::size_t slot_size(const Node &leaf) const { return pool_.size(pool_slot(leaf.leaf())); }
+  template <int W> std::size_t slot_size(const Node<W> &leaf) const { return pool_.size(pool_slot(leaf.leaf())); }
 
   LeafStore() = default;
   /// Deep copy, with the free ids' room for every id.
@@ -1324,7 +1344,7 @@ public:
 
   /// Appends `shape` with `id` to leaf n (node `leaf`), giving the leaf a
   /// slot first if it has none; the id is located there. Strong.
-  template <class V> BVH_ALWAYS_INLINE void push(Node &leaf, int n, V &&shape, std::uint32_t id) {
+  template <int W, class V> BVH_ALWAYS_INLINE void push(Node<W> &leaf, int n, V &&shape, std::uint32_t id) {
     const LeafSlot had = leaf.leaf();
     typename LeafPool<T>::Slot s;
     if (had.has_slot()) {
@@ -1344,7 +1364,7 @@ public:
   }
   /// Gives leaf n (node `leaf`, owning no slot) `count` shapes, moved from
   /// take(i) (a T&) with ids id(i), in one slot of their size.
-  template <class Take, class Id> void fill(Node &leaf, int n, std::size_t count, Take &&take, Id &&id) {
+  template <int W, class Take, class Id> void fill(Node<W> &leaf, int n, std::size_t count, Take &&take, Id &&id) {
     BVH_INVARIANT(!leaf.leaf().has_slot(), "filling a leaf that owns a slot");
     typename LeafPool<T>::Slot s = pool_.allocate(count);
     leaf.set_leaf(record(s));
@@ -1357,7 +1377,7 @@ public:
   }
   /// Removes shape i of `leaf`, keeping the others' order (and their ids
   /// located); returns its id, which stays taken. Strong.
-  std::uint32_t erase(Node &leaf, std::size_t i) {
+  template <int W> std::uint32_t erase(Node<W> &leaf, std::size_t i) {
     typename LeafPool<T>::Slot s = pool_slot(leaf.leaf());
     const std::uint32_t id = pool_.ids(s)[i];
     pool_.erase(s, i);
@@ -1371,7 +1391,7 @@ public:
   using Kept = typename LeafPool<T>::Slot;
   /// erase(), but leaf n's old slot, with every shape, is kept aside
   /// (returned): restore() undoes the erase, discard() confirms it. Strong.
-  Kept erase_keeping(Node &leaf, std::size_t i) {
+  template <int W> Kept erase_keeping(Node<W> &leaf, std::size_t i) {
     const Kept old = pool_slot(leaf.leaf());
     const typename LeafPool<T>::Slot fresh = pool_.copy_without(old, i);
     leaf.set_leaf(record(fresh));
@@ -1380,7 +1400,7 @@ public:
     return old;
   }
   /// Leaf n (node `leaf`) gets its kept slot back; the one it had goes.
-  void restore(Node &leaf, int n, Kept old) noexcept {
+  template <int W> void restore(Node<W> &leaf, int n, Kept old) noexcept {
     release(leaf);
     leaf.set_leaf(record(old));
     relocate(leaf, n);
@@ -1389,7 +1409,7 @@ public:
   void discard(Kept old) noexcept { pool_.release(old); }
   /// Appends copies of `node`'s shapes, with their ids, to `out` (nothing
   /// for an inner node or a leaf without slot); `node` is untouched.
-  void copy_out(const Node &node, std::vector<Tagged<T>> &out) const {
+  template <int W> void copy_out(const Node<W> &node, std::vector<Tagged<T>> &out) const {
     if (!node.is_leaf() || !node.leaf().has_slot()) return;
     const Span<const T> v = shapes(node);
     const std::uint32_t *ids = this->ids(node);
@@ -1397,14 +1417,14 @@ public:
   }
   /// Locates every id of leaf n (node `leaf`) there again (after a build
   /// that had located them elsewhere was given up).
-  void relocate(const Node &leaf, int n) noexcept {
+  template <int W> void relocate(const Node<W> &leaf, int n) noexcept {
     if (!leaf.is_leaf() || !leaf.leaf().has_slot()) return;
     const std::uint32_t *ids = this->ids(leaf);
     for (std::uint32_t i = 0, k = leaf.leaf().count; i < k; ++i) loc_[ids[i]] = Loc{n, i};
   }
   /// Destroys `node`'s shapes and gives its slot back (nothing for an inner
   /// node or a leaf without slot).
-  void release(Node &node) noexcept {
+  template <int W> void release(Node<W> &node) noexcept {
     if (!node.is_leaf() || !node.leaf().has_slot()) return;
     pool_.release(pool_slot(node.leaf()));
     node.set_leaf(LeafSlot{});
@@ -1509,9 +1529,10 @@ template <class T, class Tr> struct BuildScratch;
 /// (NodeStore the two copies of a box, LeafStore the records and ids); the
 /// operations here keep what spans them: a node is reset or freed only
 /// with its slot given back, and a node's box is its subtree's.
-template <class T, class Tr> struct Core {
+template <class T, class Tr, int W> struct Core {
+  static constexpr int kWidth = W; ///< children per inner node, at most
   Tr traits; ///< how shapes are read (shape_traits<T> or the user's adaptor)
-  NodeStore nodes;
+  NodeStore<W> nodes;
   LeafStore<T> leaves;
   int root = -1;         ///< -1: empty
   std::size_t size = 0;  ///< shapes stored
@@ -1576,7 +1597,7 @@ template <class T, class Tr> struct Core {
   /// Node n's box recomputed from its shapes (leaf) or its children's boxes.
   Box fitted_box(int n) const {
     Box box;
-    const Node &node = nodes.node(n);
+    const Node<W> &node = nodes.node(n);
     if (node.is_leaf()) {
       for (const T &s : leaves.shapes(node)) box.extend(box_of(traits, s));
       return fat(box);
@@ -1937,8 +1958,8 @@ template <class T, class Tr> struct BuildScratch {
 
 /// `items` (a BuildScratch's), filled with shape(i) for i < n (input
 /// position = i).
-template <class T, class Tr, class Shape>
-std::vector<Item<T, Tr>> &fill_items(const Core<T, Tr> &core, std::vector<Item<T, Tr>> &items, std::size_t n, Shape &&shape) {
+template <class T, class Tr, int W, class Shape>
+std::vector<Item<T, Tr>> &fill_items(const Core<T, Tr, W> &core, std::vector<Item<T, Tr>> &items, std::size_t n, Shape &&shape) {
   // (clear and append, not resize: T need not be default-constructible)
   items.clear();
   items.reserve(n);
@@ -1947,7 +1968,7 @@ std::vector<Item<T, Tr>> &fill_items(const Core<T, Tr> &core, std::vector<Item<T
 }
 
 /// Gives leaf n (owning no slot) the rule's items [begin, end), moved.
-template <class T, class Tr, class Rule> void fill_leaf(Core<T, Tr> &core, int n, Rule &rule, std::size_t begin, std::size_t end) {
+template <class T, class Tr, int W, class Rule> void fill_leaf(Core<T, Tr, W> &core, int n, Rule &rule, std::size_t begin, std::size_t end) {
   core.leaves.fill(
       core.nodes.node(n), n, end - begin, [&](std::size_t i) -> T & { return rule.shape(begin + i); },
       [&](std::size_t i) { return rule.id(begin + i); });
@@ -1958,12 +1979,12 @@ template <class T, class Tr, class Rule> void fill_leaf(Core<T, Tr> &core, int n
 /// moved to `*deferred` (construct's parallel part builds them). With a
 /// `layout`, children go where it says and leaves get their shapes later
 /// (gather_leaves); without, nodes come from new_node().
-template <class T, class Tr, class Rule>
-void build_top_down(Core<T, Tr> &core, std::vector<BuildTask<typename Rule::State>> &tasks, Rule &rule,
+template <class T, class Tr, int W, class Rule>
+void build_top_down(Core<T, Tr, W> &core, std::vector<BuildTask<typename Rule::State>> &tasks, Rule &rule,
                     const Layout *layout, int defer_depth = -1,
                     std::vector<BuildTask<typename Rule::State>> *deferred = nullptr) {
   using Task = BuildTask<typename Rule::State>;
-  NodeStore &nodes = core.nodes;
+  NodeStore<W> &nodes = core.nodes;
   while (!tasks.empty()) {
     const Task t = tasks.back();
     tasks.pop_back();
@@ -2023,7 +2044,7 @@ enum class Cut {
 /// The one entry for building a subtree: at leaf `at` (owning no slot),
 /// from `shapes` (reordered). If it throws, the nodes and slots it made
 /// hang under `at` (free_subtree gives them back).
-template <class T, class Tr> void build_at(Core<T, Tr> &core, int at, std::vector<Tagged<T>> &shapes, Cut how) {
+template <class T, class Tr, int W> void build_at(Core<T, Tr, W> &core, int at, std::vector<Tagged<T>> &shapes, Cut how) {
   if (how == Cut::in_order) {
     InOrderRule<T, Tr> rule(core.traits, shapes);
     std::vector<BuildTask<typename InOrderRule<T, Tr>::State>> tasks{
@@ -2049,12 +2070,12 @@ template <class T, class Tr> void build_at(Core<T, Tr> &core, int at, std::vecto
 
 /// Gives back every node and slot of the subtree at `at` (its shapes are
 /// destroyed). Never throws.
-template <class T, class Tr> void free_subtree(Core<T, Tr> &core, int at) noexcept {
+template <class T, class Tr, int W> void free_subtree(Core<T, Tr, W> &core, int at) noexcept {
   for_each_postorder(core.nodes, at, [&](int n) { core.free_node(n); });
 }
 
 /// Locates every id of the subtree at `at` in its leaves again. Never throws.
-template <class T, class Tr> void relocate_subtree(Core<T, Tr> &core, int at) noexcept {
+template <class T, class Tr, int W> void relocate_subtree(Core<T, Tr, W> &core, int at) noexcept {
   for_each_postorder(core.nodes, at, [&](int n) { core.leaves.relocate(core.nodes.node(n), n); });
 }
 
@@ -2062,7 +2083,7 @@ template <class T, class Tr> void relocate_subtree(Core<T, Tr> &core, int at) no
 /// subtree is then detached, its ids still located in `by`'s. `by` must
 /// have at's parent, child index and depth, and the parent's float copy
 /// of the box must be by's (build_beside leaves it so). Never throws.
-template <class T, class Tr> void link_in(Core<T, Tr> &core, int at, int by) noexcept {
+template <class T, class Tr, int W> void link_in(Core<T, Tr, W> &core, int at, int by) noexcept {
   const int parent = core.nodes.info(at).parent;
   if (parent < 0)
     core.root = by;
@@ -2075,7 +2096,7 @@ template <class T, class Tr> void link_in(Core<T, Tr> &core, int at, int by) noe
 /// parent, child index and depth but is not linked in (link_in does that),
 /// and the ids of `shapes` are located in it. Strong: if it throws,
 /// everything it made is given back and the tree is as it was.
-template <class T, class Tr> int build_beside(Core<T, Tr> &core, int at, std::vector<Tagged<T>> &shapes, Cut how) {
+template <class T, class Tr, int W> int build_beside(Core<T, Tr, W> &core, int at, std::vector<Tagged<T>> &shapes, Cut how) {
   const Info in = core.nodes.info(at);
   const int fresh = core.new_node(in.depth, in.parent, in.child_index);
   try {
@@ -2093,7 +2114,7 @@ template <class T, class Tr> int build_beside(Core<T, Tr> &core, int at, std::ve
 /// the old one freed, the boxes above refitted if the box changed (with a
 /// margin, leaves that update() left larger come out fitted again). Never
 /// throws.
-template <class T, class Tr> void replace_by(Core<T, Tr> &core, int at, int fresh) noexcept {
+template <class T, class Tr, int W> void replace_by(Core<T, Tr, W> &core, int at, int fresh) noexcept {
   const bool changed = core.nodes.box(fresh) != core.nodes.box(at);
   link_in(core, at, fresh);
   if (core.nodes.node(at).is_leaf()) // (a split's)
@@ -2107,12 +2128,12 @@ template <class T, class Tr> void replace_by(Core<T, Tr> &core, int at, int fres
 
 /// Copies the shapes of the subtree at `at`, in leaf order, but shape
 /// `skip_index` of leaf `skip_leaf` (none when -1).
-template <class T, class Tr>
-std::vector<Tagged<T>> copy_subtree(const Core<T, Tr> &core, int at, int skip_leaf = -1, std::size_t skip_index = 0) {
+template <class T, class Tr, int W>
+std::vector<Tagged<T>> copy_subtree(const Core<T, Tr, W> &core, int at, int skip_leaf = -1, std::size_t skip_index = 0) {
   std::vector<Tagged<T>> shapes;
   shapes.reserve(core.nodes.info(at).count);
   walk(core.nodes, at, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-    const Node &node = core.nodes.node(n);
+    const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
       if (n != skip_leaf) {
         core.leaves.copy_out(node, shapes);
@@ -2131,7 +2152,7 @@ std::vector<Tagged<T>> copy_subtree(const Core<T, Tr> &core, int at, int skip_le
 /// Rebuilds the subtree at `at` from copies of its own shapes, taken in
 /// leaf order; returns the new subtree's root. Strong: the old subtree
 /// goes only once the new one is complete.
-template <class T, class Tr> int rebuild(Core<T, Tr> &core, int at, Cut how) {
+template <class T, class Tr, int W> int rebuild(Core<T, Tr, W> &core, int at, Cut how) {
   std::vector<Tagged<T>> shapes = copy_subtree(core, at);
   const int fresh = build_beside(core, at, shapes, how);
   replace_by(core, at, fresh);
@@ -2153,7 +2174,7 @@ inline unsigned threads_for(unsigned wanted) {
 /// each node's children adjacent, each subtree contiguous; and subtrees far
 /// enough down are independent, so threads can build them at once. Last,
 /// the leaves, in pre-order, take consecutive ranges of the items.
-template <class T, class Tr> void construct_by_course_rule(Core<T, Tr> &core, const std::vector<T> &elements) {
+template <class T, class Tr, int W> void construct_by_course_rule(Core<T, Tr, W> &core, const std::vector<T> &elements) {
   const Layout layout(core.size, core.split_threshold, core.depth_limit);
   core.nodes.resize(layout.nodes(core.size, 0));
   core.root = 0;
@@ -2187,7 +2208,7 @@ template <class T, class Tr> void construct_by_course_rule(Core<T, Tr> &core, co
 
 /// Replaces the contents with `elements` (elements[i] gets the id i), built
 /// by the tree's rule. If it throws, the tree is left empty.
-template <class T, class Tr> void construct(Core<T, Tr> &core, const std::vector<T> &elements) {
+template <class T, class Tr, int W> void construct(Core<T, Tr, W> &core, const std::vector<T> &elements) {
   core.clear();
   if (elements.empty()) return;
   if (elements.size() > std::size_t(std::numeric_limits<std::uint32_t>::max()))
@@ -2219,7 +2240,7 @@ template <class T, class Tr> void construct(Core<T, Tr> &core, const std::vector
 /// then the first. Boxes are the children's float boxes (rounded outwards)
 /// kept in the parent, so the choice reads one cache line; areas are
 /// computed in double from those floats.
-inline int choose_child(const Node &node, const Box &box) {
+template <int W> inline int choose_child(const Node<W> &node, const Box &box) {
   const double bx0 = box.x0, by0 = box.y0, bx1 = box.x1, by1 = box.y1;
   int best = 0;
   double best_growth = 0, best_area = 0;
@@ -2245,7 +2266,7 @@ constexpr double kLopsided = 0.6;
 inline bool lopsided(std::size_t heaviest, std::size_t count) { return double(heaviest) > kLopsided * double(count); }
 /// Subtrees smaller than this are never rebuilt for balance: their
 /// imbalance costs less than the rebuild.
-template <class T, class Tr> std::size_t min_rebuild(const Core<T, Tr> &core) {
+template <class T, class Tr, int W> std::size_t min_rebuild(const Core<T, Tr, W> &core) {
   return std::max<std::size_t>(16, 3 * std::size_t(core.split_threshold + 1));
 }
 
@@ -2262,8 +2283,8 @@ template <class T, class Tr> std::size_t min_rebuild(const Core<T, Tr> &core) {
 /// amortised per change per level, and every level shrinks the count by at
 /// least 1 / kLopsided: depth O(log n) for any order of changes. Returns -1
 /// when no node is lopsided. The walk ends below `stop` (-1: at the root).
-template <class T, class Tr> int find_scapegoat(const Core<T, Tr> &core, int a, int below, bool any_child, int stop = -1) {
-  const NodeStore &nodes = core.nodes;
+template <class T, class Tr, int W> int find_scapegoat(const Core<T, Tr, W> &core, int a, int below, bool any_child, int stop = -1) {
+  const NodeStore<W> &nodes = core.nodes;
   const std::size_t smallest = min_rebuild(core);
   int scapegoat = -1;
   for (; a != stop; below = a, a = nodes.info(a).parent) {
@@ -2271,7 +2292,7 @@ template <class T, class Tr> int find_scapegoat(const Core<T, Tr> &core, int a, 
     if (count < smallest) continue;
     std::size_t heaviest = 0;
     if (any_child) {
-      const Node &node = nodes.node(a);
+      const Node<W> &node = nodes.node(a);
       for (int c = 0; c < node.num_children; ++c) heaviest = std::max(heaviest, nodes.info(node.child(c)).count);
     } else {
       heaviest = nodes.info(below).count; // (a is below's parent: an inner node)
@@ -2286,7 +2307,7 @@ template <class T, class Tr> int find_scapegoat(const Core<T, Tr> &core, int a, 
 /// is strong and only improves the balance, so if it throws the subtree
 /// simply stays as it was (the next change finds it again) and the change
 /// is not undone: the exception is not passed on.
-template <class T, class Tr> void rebalance(Core<T, Tr> &core, int scapegoat, Cut how) noexcept {
+template <class T, class Tr, int W> void rebalance(Core<T, Tr, W> &core, int scapegoat, Cut how) noexcept {
   if (scapegoat < 0) return;
   try {
     rebuild(core, scapegoat, how);
@@ -2304,9 +2325,9 @@ template <class T, class Tr> void rebalance(Core<T, Tr> &core, int scapegoat, Cu
 /// once). Strong: if it throws, the counts and boxes from `top` down are
 /// undone (a split is built beside the leaf, which goes only once the new
 /// subtree is complete).
-template <class T, class Tr>
-BVH_ALWAYS_INLINE int insert_below(Core<T, Tr> &core, int top, const Box &box, const T &shape, std::uint32_t id) {
-  NodeStore &nodes = core.nodes;
+template <class T, class Tr, int W>
+BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &box, const T &shape, std::uint32_t id) {
+  NodeStore<W> &nodes = core.nodes;
   int n = top;
   Box leaf_box; // the leaf's box before: with a margin it may exceed its shapes'
   for (;;) {
@@ -2348,8 +2369,8 @@ BVH_ALWAYS_INLINE int insert_below(Core<T, Tr> &core, int top, const Box &box, c
 /// insert_shape() without its rebalance: insert_below() from the root (or
 /// the first shape as the root leaf). Returns the node the shape went to.
 /// Strong.
-template <class T, class Tr> BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr> &core, const T &shape, std::uint32_t id) {
-  NodeStore &nodes = core.nodes;
+template <class T, class Tr, int W> BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr, W> &core, const T &shape, std::uint32_t id) {
+  NodeStore<W> &nodes = core.nodes;
   const Box box = core.fat(box_of(core.traits, shape));
   if (core.root < 0) {
     const int root = core.new_node(0, -1, 0);
@@ -2373,7 +2394,7 @@ template <class T, class Tr> BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr>
 /// Adds `shape` under an id already taken (insert_unbalanced), then
 /// rebuilds the highest lopsided node on the path (find_scapegoat,
 /// rebalance). Strong.
-template <class T, class Tr> void insert_shape(Core<T, Tr> &core, const T &shape, std::uint32_t id) {
+template <class T, class Tr, int W> void insert_shape(Core<T, Tr, W> &core, const T &shape, std::uint32_t id) {
   const int n = insert_unbalanced(core, shape, id);
   rebalance(core, find_scapegoat(core, core.nodes.info(n).parent, n, false), Cut::by_rule);
 }
@@ -2390,7 +2411,7 @@ template <class T> struct EraseUndo {
 
 /// Decrements the counts from node n up and refits the boxes, bottom-up
 /// (above the first box that does not change, only the counts do).
-template <class T, class Tr> void uncount_up(Core<T, Tr> &core, int n) noexcept {
+template <class T, class Tr, int W> void uncount_up(Core<T, Tr, W> &core, int n) noexcept {
   bool refit = true;
   for (; n >= 0; n = core.nodes.info(n).parent) {
     --core.nodes.info(n).count;
@@ -2419,9 +2440,9 @@ template <class T, class Tr> void uncount_up(Core<T, Tr> &core, int n) noexcept 
 /// beside the old subtree from copies. With `undo` (update()), the old
 /// slot or subtree is kept aside: undo_erase() puts it back,
 /// commit_erase() gives it back. The tree must hold more than one shape.
-template <class T, class Tr>
-std::uint32_t erase_at(Core<T, Tr> &core, int leaf, std::size_t index, int *changed, EraseUndo<T> *undo = nullptr) {
-  NodeStore &nodes = core.nodes;
+template <class T, class Tr, int W>
+std::uint32_t erase_at(Core<T, Tr, W> &core, int leaf, std::size_t index, int *changed, EraseUndo<T> *undo = nullptr) {
+  NodeStore<W> &nodes = core.nodes;
   BVH_INVARIANT(core.size > 1, "erase_at() of the last shape");
   int mend = nodes.node(leaf).leaf().count == 1 ? nodes.info(leaf).parent : -1;
   for (int n = nodes.info(leaf).parent; n >= 0; n = nodes.info(n).parent)
@@ -2458,8 +2479,8 @@ std::uint32_t erase_at(Core<T, Tr> &core, int leaf, std::size_t index, int *chan
 }
 
 /// Puts back what erase_at(..., undo) removed: the tree is as before it.
-template <class T, class Tr> void undo_erase(Core<T, Tr> &core, const EraseUndo<T> &undo) noexcept {
-  NodeStore &nodes = core.nodes;
+template <class T, class Tr, int W> void undo_erase(Core<T, Tr, W> &core, const EraseUndo<T> &undo) noexcept {
+  NodeStore<W> &nodes = core.nodes;
   int from;
   if (undo.fresh >= 0) {
     link_in(core, undo.fresh, undo.old_root);
@@ -2479,7 +2500,7 @@ template <class T, class Tr> void undo_erase(Core<T, Tr> &core, const EraseUndo<
 }
 
 /// Confirms an erase_at(..., undo): the kept slot or subtree goes.
-template <class T, class Tr> void commit_erase(Core<T, Tr> &core, const EraseUndo<T> &undo) noexcept {
+template <class T, class Tr, int W> void commit_erase(Core<T, Tr, W> &core, const EraseUndo<T> &undo) noexcept {
   if (undo.fresh >= 0)
     free_subtree(core, undo.old_root);
   else
@@ -2487,7 +2508,7 @@ template <class T, class Tr> void commit_erase(Core<T, Tr> &core, const EraseUnd
 }
 
 /// erase_at() and its rebalance, then the id is given back. Strong.
-template <class T, class Tr> void erase_shape(Core<T, Tr> &core, int leaf, std::size_t index) {
+template <class T, class Tr, int W> void erase_shape(Core<T, Tr, W> &core, int leaf, std::size_t index) {
   std::uint32_t id;
   if (core.size == 1) {
     id = core.leaves.ids(core.nodes.node(leaf))[index];
@@ -2516,9 +2537,9 @@ template <class T> void assign(T &dst, const T &src) {
 /// again under the same id. Strong (in place: when T's move assignment
 /// cannot throw, else as strong as T's copy assignment): if the insert
 /// throws, the erase is undone.
-template <class T, class Tr> void update_shape(Core<T, Tr> &core, std::uint32_t id, const T &moved) {
+template <class T, class Tr, int W> void update_shape(Core<T, Tr, W> &core, std::uint32_t id, const T &moved) {
   const typename LeafStore<T>::Loc at = core.leaves.locate(id);
-  NodeStore &nodes = core.nodes;
+  NodeStore<W> &nodes = core.nodes;
   const Box box = box_of(core.traits, moved);
   if (nodes.box(at.leaf).contains(box) || core.size == 1) {
     assign(core.leaves.shapes(nodes.node(at.leaf))[at.index], moved);
@@ -2568,7 +2589,7 @@ template <class T, class Tr> void update_shape(Core<T, Tr> &core, std::uint32_t 
 
 /// Sets the margin and recomputes every box, bottom-up: O(n).
 /// Strong: nothing changes before the pass that cannot throw.
-template <class T, class Tr> void set_margin(Core<T, Tr> &core, double m) {
+template <class T, class Tr, int W> void set_margin(Core<T, Tr, W> &core, double m) {
   const double margin = m > 0 && m < std::numeric_limits<double>::infinity() ? m : 0;
   if (core.root < 0) {
     core.margin = margin;
@@ -2591,14 +2612,14 @@ template <class T, class Tr> void set_margin(Core<T, Tr> &core, double m) {
 /// True iff some stored shape intersects `shape` (touching counts).
 /// Subtrees whose box misses the shape's box are never visited; the final
 /// test is T's intersect().
-template <class T, class Tr> bool collides(const Core<T, Tr> &core, const T &shape) {
+template <class T, class Tr, int W> bool collides(const Core<T, Tr, W> &core, const T &shape) {
   if (core.root < 0) return false;
   const Box box = box_of(core.traits, shape);
   if (!core.nodes.box(core.root).overlaps(box)) return false;
   const Probe probe = Probe::around(box);
   // Children holding the probe's centre first: a hit there is likely.
   return !walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-    const Node &node = core.nodes.node(n);
+    const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
       for (const T &s : core.leaves.shapes(node))
         if (core.traits.intersect(s, shape)) return kStop;
@@ -2612,11 +2633,11 @@ template <class T, class Tr> bool collides(const Core<T, Tr> &core, const T &sha
 
 /// Calls visit(shape) on each shape whose box overlaps `box`, until it
 /// returns false.
-template <class T, class Tr, class V> void visit_overlapping(const Core<T, Tr> &core, const Box &box, V &&visit) {
+template <class T, class Tr, int W, class V> void visit_overlapping(const Core<T, Tr, W> &core, const Box &box, V &&visit) {
   if (core.root < 0 || !core.nodes.box(core.root).overlaps(box)) return;
   const Probe probe = Probe::around(box);
   walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-    const Node &node = core.nodes.node(n);
+    const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
       for (const T &s : core.leaves.shapes(node))
         if (box_of(core.traits, s).overlaps(box) && !visit(s)) return kStop;
@@ -2632,13 +2653,13 @@ template <class T, class Tr, class V> void visit_overlapping(const Core<T, Tr> &
 /// stack and steps, kept between calls, and the current leaf's shapes not
 /// yet looked at. With `shape`, only shapes that intersect it are found.
 /// The stack is on the call stack for trees up to IndexStack::kInline deep.
-template <class T, class Tr> class OverlapSearch {
+template <class T, class Tr, int W> class OverlapSearch {
 public:
   /// The end of every search.
   OverlapSearch() = default;
   /// The search of `core` for `box` (and `shape`, when not null), at its
   /// first shape.
-  OverlapSearch(const Core<T, Tr> &core, const Box &box, const T *shape)
+  OverlapSearch(const Core<T, Tr, W> &core, const Box &box, const T *shape)
       : core_(&core), box_(box), probe_(Probe::around(box)) {
     if (shape) shape_.emplace(*shape);
     if (core.root < 0 || !core.nodes.box(core.root).overlaps(box)) return;
@@ -2659,7 +2680,7 @@ public:
         }
       }
       if (stack_.empty()) return;
-      const Node &node = core_->nodes.node(stack_.pop());
+      const Node<W> &node = core_->nodes.node(stack_.pop());
       if (node.is_leaf()) {
         const Span<const T> v = core_->leaves.shapes(node);
         next_ = v.begin();
@@ -2673,7 +2694,7 @@ public:
   }
 
 private:
-  const Core<T, Tr> *core_ = nullptr;
+  const Core<T, Tr, W> *core_ = nullptr;
   Box box_;
   Probe probe_ = Probe(0, 0, 0, 0, 0, 0);
   std::optional<T> shape_; // a copy: the probe may be a temporary
@@ -2684,13 +2705,13 @@ private:
 
 /// Finds a stored shape equal to `value`: its leaf and index. Only
 /// subtrees whose box holds value's box are searched.
-template <class T, class Tr> bool find_equal(const Core<T, Tr> &core, const T &value, int &leaf, std::size_t &index) {
+template <class T, class Tr, int W> bool find_equal(const Core<T, Tr, W> &core, const T &value, int &leaf, std::size_t &index) {
   const Box box = box_of(core.traits, value);
   if (core.root < 0 || !core.nodes.box(core.root).contains(box)) return false;
   // A float child box is its exact box rounded outwards: it holds `box`
   // whenever the exact one does.
   return !walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-    const Node &node = core.nodes.node(n);
+    const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
       const Span<const T> v = core.leaves.shapes(node);
       for (std::size_t i = 0; i < v.size(); ++i)
@@ -2724,7 +2745,7 @@ template <class T> struct Found {
 /// so never farther than the exact box).
 template <class P> struct PointMetric {
   const P &p;
-  double box_key(const Node &node, int c) const {
+  template <int W> double box_key(const Node<W> &node, int c) const {
     const double px = p.x, py = p.y;
     const double dx = std::max({double(node.lo_x[c]) - px, 0.0, px - double(node.hi_x[c])});
     const double dy = std::max({double(node.lo_y[c]) - py, 0.0, py - double(node.hi_y[c])});
@@ -2739,7 +2760,7 @@ template <class P> struct PointMetric {
 /// misses), bounded below by where it enters a child's float box.
 template <class P> struct RayMetric {
   const P &origin, &direction;
-  double box_key(const Node &node, int c) const {
+  template <int W> double box_key(const Node<W> &node, int c) const {
     const Box b{node.lo_x[c], node.lo_y[c], node.hi_x[c], node.hi_y[c]};
     return b.ray_entry(origin.x, origin.y, direction.x, direction.y);
   }
@@ -2752,8 +2773,8 @@ template <class P> struct RayMetric {
 /// are taken in order of metric.box_key, a lower bound on the keys of the
 /// shapes under a child; the search stops when the next node's bound is
 /// past metric.beyond(the k-th key so far). O(log n + k) typically.
-template <class T, class Tr, class Metric>
-void best_first(const Core<T, Tr> &core, const Metric &metric, std::size_t k, std::vector<Found<T>> &found) {
+template <class T, class Tr, int W, class Metric>
+void best_first(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k, std::vector<Found<T>> &found) {
   found.clear();
   if (k == 0 || core.root < 0) return;
   const double inf = std::numeric_limits<double>::infinity();
@@ -2768,7 +2789,7 @@ void best_first(const Core<T, Tr> &core, const Metric &metric, std::size_t k, st
     const Entry e = heap.back();
     heap.pop_back();
     if (e.first > bound()) break;
-    const Node &node = core.nodes.node(e.second);
+    const Node<W> &node = core.nodes.node(e.second);
     if (node.is_leaf()) {
       // The ids only once a shape is near enough to need its tie-break.
       const Span<const T> v = core.leaves.shapes(node);
@@ -2810,9 +2831,9 @@ void best_first(const Core<T, Tr> &core, const Metric &metric, std::size_t k, st
 /// the tree against itself: a pair of nodes is opened only when their boxes
 /// overlap, so the cost is O(n log n + k) for k pairs on well-spread
 /// scenes, against O(n^2) for a scan.
-template <class T, class Tr, class F> void for_each_overlapping_pair(const Core<T, Tr> &core, F &&f) {
+template <class T, class Tr, int W, class F> void for_each_overlapping_pair(const Core<T, Tr, W> &core, F &&f) {
   if (core.root < 0) return;
-  const NodeStore &nodes = core.nodes;
+  const NodeStore<W> &nodes = core.nodes;
   auto pair = [&](const T &s, const T &u) {
     return box_of(core.traits, s).overlaps(box_of(core.traits, u)) && core.traits.intersect(s, u);
   };
@@ -2820,7 +2841,7 @@ template <class T, class Tr, class F> void for_each_overlapping_pair(const Core<
   while (!stack.empty()) {
     auto [a, b] = stack.back();
     stack.pop_back();
-    const Node &na = nodes.node(a);
+    const Node<W> &na = nodes.node(a);
     if (a == b) {
       if (na.is_leaf()) {
         const Span<const T> v = core.leaves.shapes(na);
@@ -2836,7 +2857,7 @@ template <class T, class Tr, class F> void for_each_overlapping_pair(const Core<
       }
       continue;
     }
-    const Node &nb = nodes.node(b);
+    const Node<W> &nb = nodes.node(b);
     if (na.is_leaf() && nb.is_leaf()) {
       for (const T &s : core.leaves.shapes(na))
         for (const T &u : core.leaves.shapes(nb))
@@ -2845,7 +2866,7 @@ template <class T, class Tr, class F> void for_each_overlapping_pair(const Core<
     }
     // Open the inner node of the two, the larger box when both are.
     if (na.is_leaf() || (!nb.is_leaf() && nodes.box(b).area() > nodes.box(a).area())) std::swap(a, b);
-    const Node &open = nodes.node(a);
+    const Node<W> &open = nodes.node(a);
     for (int c = 0; c < open.num_children; ++c)
       if (nodes.box(open.child(c)).overlaps(nodes.box(b))) stack.push_back({open.child(c), b});
   }
@@ -2865,7 +2886,7 @@ struct Summary {
 
 /// The one pass behind statistics(), sah_cost() and height(): every node in
 /// pre-order, f(n, its area in canvas units) called on each.
-template <class T, class Tr, class F> Summary summarize(const Core<T, Tr> &core, F &&f) {
+template <class T, class Tr, int W, class F> Summary summarize(const Core<T, Tr, W> &core, F &&f) {
   Summary s;
   for_each_preorder(core.nodes, core.root, [&](int n) {
     const Info &in = core.nodes.info(n);
@@ -2880,19 +2901,19 @@ template <class T, class Tr, class F> Summary summarize(const Core<T, Tr> &core,
   });
   return s;
 }
-template <class T, class Tr> Summary summarize(const Core<T, Tr> &core) {
+template <class T, class Tr, int W> Summary summarize(const Core<T, Tr, W> &core) {
   return summarize(core, [](int, double) {});
 }
 
 /// The course's report: with `print_tree`, one line per node in pre-order,
 /// then node count, max depth and the two area sums.
-template <class T, class Tr> void print_statistics(const Core<T, Tr> &core, std::ostream &ostr, bool print_tree) {
+template <class T, class Tr, int W> void print_statistics(const Core<T, Tr, W> &core, std::ostream &ostr, bool print_tree) {
   std::string line;
   char buf[64];
   const Summary s = summarize(core, [&](int n, double area) {
     if (!print_tree) return;
     const Info &in = core.nodes.info(n);
-    const Node &node = core.nodes.node(n);
+    const Node<W> &node = core.nodes.node(n);
     // The course's stream is not yet in fixed mode when it prints the
     // root, so the root's area shows 3 significant digits, the rest 3
     // decimals.
@@ -2928,12 +2949,14 @@ template <class T, class Tr> void print_statistics(const Core<T, Tr> &core, std:
 /// and 1/3 their own primary), every shape recoloured to its leaf's colour.
 /// Boxes are drawn by the shape library's BoundingBox::render; colours are
 /// made with Color(r, g, b) and given to T::setColor.
-template <class T, class Tr> void render_recolor(Core<T, Tr> &core, std::ostream &ostr) {
+template <class T, class Tr, int W> void render_recolor(Core<T, Tr, W> &core, std::ostream &ostr) {
   if (core.root < 0) return;
   struct Rgb {
     int r, g, b;
   };
-  static const Rgb primary[kWidth] = {{255, 0, 0}, {0, 255, 0}, {0, 0, 255}};
+  // The course's three first, then one more hue per child up to kMaxWidth.
+  static const Rgb primary[kMaxWidth] = {{255, 0, 0},   {0, 255, 0},   {0, 0, 255}, {255, 255, 0},
+                                         {0, 255, 255}, {255, 0, 255}, {255, 128, 0}, {128, 0, 255}};
   // Channels mixed here, as Color::mix would (the course's mix returns
   // nothing and this project's returns the mix: neither is relied on).
   auto blend = [](const Rgb &parent, const Rgb &own) {
@@ -2952,7 +2975,7 @@ template <class T, class Tr> void render_recolor(Core<T, Tr> &core, std::ostream
     const Color color(own.r, own.g, own.b);
     const Box &b = in.box();
     BoundingBox(Point(b.x0, b.y0), Point(b.x1, b.y1)).render(ostr, color);
-    Node &node = core.nodes.node(n);
+    Node<W> &node = core.nodes.node(n);
     if (node.is_leaf())
       for (T &s : core.leaves.shapes(node)) s.setColor(color);
   });
@@ -2960,14 +2983,14 @@ template <class T, class Tr> void render_recolor(Core<T, Tr> &core, std::ostream
 
 /// Checks node n's own invariants (not its subtree's: validate() does
 /// that); false with *why set on the first failure.
-template <class T, class Tr> bool validate_node(const Core<T, Tr> &core, int n, std::string &why) {
-  const NodeStore &nodes = core.nodes;
-  const Node &node = nodes.node(n);
+template <class T, class Tr, int W> bool validate_node(const Core<T, Tr, W> &core, int n, std::string &why) {
+  const NodeStore<W> &nodes = core.nodes;
+  const Node<W> &node = nodes.node(n);
   const Info &in = nodes.info(n);
   if (n == core.root) {
     if (in.parent != -1 || in.depth != 0) return why = "root has a parent or depth != 0", false;
   } else {
-    const Node &p = nodes.node(in.parent);
+    const Node<W> &p = nodes.node(in.parent);
     const int c = in.child_index;
     if (in.depth != nodes.info(in.parent).depth + 1) return why = "depth is not parent's + 1", false;
     if (c < 0 || c >= p.num_children || p.child(c) != n) return why = "parent does not list it in its slot", false;
@@ -2995,8 +3018,8 @@ template <class T, class Tr> bool validate_node(const Core<T, Tr> &core, int n, 
     // leaves it as it is while the shapes stay inside.
     if (core.margin > 0 && in.box().contains(tight)) tight = in.box();
   } else {
-    if (node.num_children < 2 || node.num_children > kWidth)
-      return why = "inner node without 2 to " + std::to_string(kWidth) + " children", false;
+    if (node.num_children < 2 || node.num_children > W)
+      return why = "inner node without 2 to " + std::to_string(W) + " children", false;
     if (node.num_children == 2 && core.split_threshold != 1) return why = "2 children although split_threshold > 1", false;
     for (int c = 0; c < node.num_children; ++c) {
       tight.extend(nodes.box(node.child(c)));
@@ -3010,8 +3033,8 @@ template <class T, class Tr> bool validate_node(const Core<T, Tr> &core, int n, 
 
 /// Checks every invariant of the tree; false with *why (when given) naming
 /// the node and what it broke. O(n log n).
-template <class T, class Tr> bool validate(const Core<T, Tr> &core, std::string *why) {
-  const NodeStore &nodes = core.nodes;
+template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, std::string *why) {
+  const NodeStore<W> &nodes = core.nodes;
   std::string what;
   int bad = -1;
   auto fail = [&](int n, const std::string &w) {
@@ -3187,7 +3210,7 @@ private:
 
 /// BVH::insert's id handling around insert_shape: the next id, given back
 /// if the insertion throws.
-template <class T, class Tr> void insert_new(Core<T, Tr> &core, const T &shape) {
+template <class T, class Tr, int W> void insert_new(Core<T, Tr, W> &core, const T &shape) {
   const std::uint32_t id = core.leaves.new_id();
   try {
     insert_shape(core, shape, id);
@@ -3281,13 +3304,13 @@ struct Frontier {
   std::vector<Lane> lanes;
   std::vector<std::pair<int, std::size_t>> lane_of; ///< (subtree root, lane), by node
 
-  template <class T, class Tr> Frontier(const Core<T, Tr> &core, int depth) {
-    const NodeStore &nodes = core.nodes;
+  template <class T, class Tr, int W> Frontier(const Core<T, Tr, W> &core, int depth) {
+    const NodeStore<W> &nodes = core.nodes;
     std::vector<int> stack{core.root};
     while (!stack.empty()) {
       const int n = stack.back();
       stack.pop_back();
-      const Node &node = nodes.node(n);
+      const Node<W> &node = nodes.node(n);
       if (nodes.info(n).depth < depth && !node.is_leaf()) {
         top.push_back(n);
         for (int c = node.num_children - 1; c >= 0; --c) stack.push_back(node.child(c));
@@ -3303,8 +3326,8 @@ struct Frontier {
 };
 
 /// Step 4, serial: keep[i] inserted for each i, in order, as the loop does.
-template <class T, class Tr>
-void insert_serially(Core<T, Tr> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
+template <class T, class Tr, int W>
+void insert_serially(Core<T, Tr, W> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
                      std::size_t from, std::vector<std::size_t> &kept) {
   for (std::size_t i = from; i < keep.size(); ++i) {
     insert_new(core, candidates[keep[i]]);
@@ -3326,11 +3349,11 @@ inline std::size_t insertion_allocations(std::size_t m) { return 6 * (m + 1) + 8
 /// and holds exactly the kept candidates before the failure, though not in
 /// the loop's shape (the erases mend it their own way) and not with the
 /// loop's ids. If an erase here throws too, that candidate stays.
-template <class T, class Tr>
-[[noreturn]] void finish_failed_lanes(Core<T, Tr> &core, const std::vector<T> &candidates,
+template <class T, class Tr, int W>
+[[noreturn]] void finish_failed_lanes(Core<T, Tr, W> &core, const std::vector<T> &candidates,
                                       const std::vector<std::size_t> &keep, Frontier &frontier,
                                       const std::vector<std::uint32_t> &ids, std::size_t next) {
-  NodeStore &nodes = core.nodes;
+  NodeStore<W> &nodes = core.nodes;
   std::size_t first = keep.size();
   std::exception_ptr error;
   for (const Lane &lane : frontier.lanes)
@@ -3391,13 +3414,13 @@ template <class T, class Tr>
 /// frontier. Lanes run only on a tree without margin (boxes are then always
 /// their contents' union, so nothing in a subtree refits the top) and
 /// large enough to be worth it.
-template <class T, class Tr>
-void insert_in_order(Core<T, Tr> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
+template <class T, class Tr, int W>
+void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
                      unsigned threads, Crew &crew, DisjointClock &clock, std::vector<std::size_t> &kept) {
   constexpr std::size_t kLanesMin = 4096; // a smaller tree or fewer candidates: serially
-  NodeStore &nodes = core.nodes;
+  NodeStore<W> &nodes = core.nodes;
   int depth = 0; // the frontier's: about 16 subtrees a thread
-  for (std::size_t lanes = 1; lanes < 16 * std::size_t(threads); lanes *= std::size_t(kWidth)) ++depth;
+  for (std::size_t lanes = 1; lanes < 16 * std::size_t(threads); lanes *= std::size_t(W)) ++depth;
   for (std::size_t next = 0; next < keep.size();) {
     if (core.margin != 0 || core.root < 0 || nodes.node(core.root).is_leaf() || core.size < kLanesMin ||
         keep.size() - next < 64) {
@@ -3518,8 +3541,8 @@ void insert_in_order(Core<T, Tr> &core, const std::vector<T> &candidates, const 
 }
 
 /// The batches of insert_disjoint (run by the crew's driver).
-template <class T, class Tr>
-void insert_disjoint_batches(Core<T, Tr> &core, const std::vector<T> &candidates, unsigned threads, Crew &crew,
+template <class T, class Tr, int W>
+void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candidates, unsigned threads, Crew &crew,
                              std::vector<std::size_t> &kept) {
   const std::size_t n = candidates.size();
   // Batch sizes: starting small (on an empty tree all of the first batch
@@ -3595,8 +3618,8 @@ void insert_disjoint_batches(Core<T, Tr> &core, const std::vector<T> &candidates
 /// (a throw in step 1 or 2) or the first whose insertion threw (step 4;
 /// with 1 thread, the candidate being decided); after a throw in a lane,
 /// in another shape and with other ids than the loop's (finish_failed_lanes).
-template <class T, class Tr>
-std::vector<std::size_t> insert_disjoint(Core<T, Tr> &core, const std::vector<T> &candidates, unsigned threads) {
+template <class T, class Tr, int W>
+std::vector<std::size_t> insert_disjoint(Core<T, Tr, W> &core, const std::vector<T> &candidates, unsigned threads) {
   std::vector<std::size_t> kept;
   threads = threads_for(threads);
   if (threads == 1 || candidates.empty()) {
@@ -3658,12 +3681,18 @@ std::vector<std::size_t> insert_disjoint(Core<T, Tr> &core, const std::vector<T>
 /// erase(handle), erase(iterator), update, set_margin and copy assignment;
 /// basic for construct (left empty) and erase(value); never throwing for
 /// moves, swap, clear. A Traits adaptor's copy and move must not throw.
-template <class T, class Traits = shape_traits<T>> class BVH {
+///
+/// Width: children per inner node. The engine below is written for widths
+/// 2 to 8, but its build rules still cut a node in three, so only the
+/// course's width 3 is accepted for now.
+template <class T, class Traits = shape_traits<T>, int Width = detail::kCourseWidth> class BVH {
+  static_assert(Width >= detail::kMinWidth && Width <= detail::kMaxWidth, "BVH<T, Traits, Width>: Width is 2 to 8");
+  static_assert(Width == detail::kCourseWidth, "BVH<T, Traits, Width>: widths other than 3 are not built yet");
   static_assert(std::is_nothrow_destructible<T>::value, "BVH<T>: T's destructor must not throw");
   static_assert(std::is_nothrow_copy_constructible<Traits>::value && std::is_nothrow_move_assignable<Traits>::value,
                 "BVH<T, Traits>: the traits' copy and move must not throw (moves and swap rely on it)");
   using Box = detail::Box;
-  using Core = detail::Core<T, Traits>;
+  using Core = detail::Core<T, Traits, Width>;
   /// Box types other than T: what query(box, f) and overlapping(box) take.
   template <class B>
   using if_box = typename std::enable_if<!std::is_convertible<const B &, const T &>::value, int>::type;
@@ -4029,7 +4058,7 @@ public:
   private:
     friend class BVH;
     overlap_iterator(const Core &core, const Box &box, const T *shape) : search_(core, box, shape) {}
-    detail::OverlapSearch<T, Traits> search_;
+    detail::OverlapSearch<T, Traits, Width> search_;
   };
 
   /// What overlapping() returns: a range for range-for.
@@ -4160,7 +4189,7 @@ private:
     if (rank >= core_.size) return end();
     int n = core_.root;
     while (!core_.nodes.node(n).is_leaf()) {
-      const detail::Node &node = core_.nodes.node(n);
+      const detail::Node<Width> &node = core_.nodes.node(n);
       int c = 0;
       while (rank >= core_.nodes.info(node.child(c)).count) rank -= core_.nodes.info(node.child(c)).count, ++c;
       n = node.child(c);
