@@ -10,7 +10,7 @@ BUILD ?= build
 HEADERS := bvh.h shapes.h intersect.h distance.h svg.h scene.h
 # Parallel jobs of make test's build (and of tests/run.sh's layers).
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
-UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions
+UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions lazy_handles
 TESTS := $(UNITS:%=$(BUILD)/test_%)
 # test_bvh once more with collision()'s scalar fallback instead of SSE2.
 SCALAR_TESTS := $(BUILD)/test_bvh_scalar
