@@ -1461,12 +1461,13 @@ public:
   /// also safe on several threads at once); without memory for it, by a
   /// walk over the leaves. Never throws.
   bool find(const NodeStore &nodes, int root, std::uint32_t id, Loc *at) const noexcept {
+    if (root < 0) return false; // (an empty tree builds no table)
     if (locate_all(nodes, root)) {
       if (!contains(id)) return false;
       if (at) *at = loc_[id];
       return true;
     }
-    for (int n = root < 0 ? -1 : nodes.leftmost_leaf(root); n >= 0; n = nodes.next_leaf(n)) {
+    for (int n = nodes.leftmost_leaf(root); n >= 0; n = nodes.next_leaf(n)) {
       const Node &leaf = nodes.node(n);
       if (!leaf.leaf().has_slot()) continue;
       const std::uint32_t *ids = this->ids(leaf);

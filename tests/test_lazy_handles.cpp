@@ -183,6 +183,8 @@ TEST(no_table_until_a_handle_is_used) {
     // Emptying the tree forgets the ids and the table.
     tree.clear();
     CHECK_EQ(tree.memory().handles, std::size_t(0));
+    CHECK(!tree.contains(first)); // (a lookup in an empty tree builds nothing)
+    CHECK_EQ(tree.memory().handles, std::size_t(0));
     CHECK(tree.validate());
   }
 }
