@@ -28,7 +28,7 @@ LIBCXX_TESTS := $(UNITS:%=$(BUILD)/test_%_libcxx)
 # BVH_ASSERT's misuse checks: on (the default build), off (-DNDEBUG), and a
 # user's own handler that throws; construct()'s threads under ThreadSanitizer.
 ASSERT_TESTS := $(BUILD)/test_asserts $(BUILD)/test_asserts_ndebug $(BUILD)/test_asserts_throwing
-TSAN_TESTS := $(BUILD)/test_threads_tsan $(BUILD)/test_disjoint_tsan
+TSAN_TESTS := $(BUILD)/test_threads_tsan $(BUILD)/test_disjoint_tsan $(BUILD)/test_lazy_handles_tsan
 # examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 

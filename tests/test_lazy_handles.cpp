@@ -362,10 +362,12 @@ TEST(first_lookups_on_several_threads_at_once) {
       tree.erase(it);
     }
     CHECK_EQ(tree.memory().handles, std::size_t(0));
-    std::atomic<int> wrong{0};
+    std::atomic<int> wrong{0}, ready{0};
     std::vector<std::thread> pool;
     for (int t = 0; t < 4; ++t)
       pool.emplace_back([&, t] {
+        ++ready; // (all start together, so that several meet the unbuilt table)
+        while (ready.load() < 4) std::this_thread::yield();
         std::uint32_t id = std::uint32_t(t) * 997u % m.count;
         for (std::uint32_t k = 0; k < m.count; ++k, id = (id + 1) % m.count) {
           const auto s = m.shapes.find(id);
