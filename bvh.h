@@ -3713,7 +3713,8 @@ std::vector<std::size_t> insert_disjoint(Core<T, Tr> &core, const std::vector<T>
 /// T&)`, render_recolor() `setColor(const Color&)`. Shapes live only in
 /// leaves, each exactly once; every node knows the tight box of its
 /// subtree. The const members only read the tree: any number of threads may
-/// call them at once while no thread changes the tree.
+/// call them at once while no thread changes the tree (the first handle
+/// lookup builds the handle table, under a lock: see contains()).
 ///
 /// Exceptions (docs/library.txt, EXCEPTIONS): T's copy and move may throw,
 /// its destructor must not (static_assert); where stored shapes move the
