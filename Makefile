@@ -10,7 +10,7 @@ BUILD ?= build
 HEADERS := bvh.h shapes.h intersect.h distance.h svg.h scene.h
 # Parallel jobs of make test's build (and of tests/run.sh's layers).
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
-UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions
+UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions lazy_handles
 TESTS := $(UNITS:%=$(BUILD)/test_%)
 # test_bvh once more with collision()'s scalar fallback instead of SSE2.
 SCALAR_TESTS := $(BUILD)/test_bvh_scalar
@@ -28,7 +28,7 @@ LIBCXX_TESTS := $(UNITS:%=$(BUILD)/test_%_libcxx)
 # BVH_ASSERT's misuse checks: on (the default build), off (-DNDEBUG), and a
 # user's own handler that throws; construct()'s threads under ThreadSanitizer.
 ASSERT_TESTS := $(BUILD)/test_asserts $(BUILD)/test_asserts_ndebug $(BUILD)/test_asserts_throwing
-TSAN_TESTS := $(BUILD)/test_threads_tsan $(BUILD)/test_disjoint_tsan
+TSAN_TESTS := $(BUILD)/test_threads_tsan $(BUILD)/test_disjoint_tsan $(BUILD)/test_lazy_handles_tsan
 # examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 

@@ -308,6 +308,8 @@ public:
   /// Removes the last element (reset to its default, as the next
   /// emplace_back expects).
   void pop_back() { (*this)[--size_] = X(); }
+  /// Bytes held: the blocks, whole, and the block table.
+  std::size_t bytes() const { return blocks_.size() * kBlock * sizeof(X) + blocks_.capacity() * sizeof(blocks_[0]); }
 
 private:
   static constexpr std::size_t kShift = 9, kBlock = std::size_t(1) << kShift, kMask = kBlock - 1;
@@ -821,6 +823,8 @@ public:
   std::size_t live() const { return nodes_.size() - free_.size(); }
   /// The free nodes.
   const std::vector<int> &free_list() const { return free_; }
+  /// Bytes held: both arrays' blocks and the free list's room.
+  std::size_t bytes() const { return nodes_.bytes() + info_.bytes() + free_.capacity() * sizeof(int); }
   /// Drops every node.
   void clear() noexcept {
     nodes_.clear();
@@ -1083,6 +1087,20 @@ public:
   /// Makes allocate() and release() take `shared`'s lock (none: nullptr).
   void share(SharedAlloc *shared) noexcept { sharing_.to = shared; }
 
+  /// The pool's bytes by use: the stored shapes and their ids, the places
+  /// that hold neither (room in slots, free slots, unfilled blocks) and the
+  /// bookkeeping (slot sizes, free-slot lists, block tables).
+  struct Bytes {
+    std::size_t shapes = 0, ids = 0, slack = 0, index = 0;
+  };
+  /// The pool's bytes. O(slots).
+  Bytes bytes() const {
+    Bytes b;
+    b.index = classes_.capacity() * sizeof(Class);
+    for (const Class &c : classes_) c.add_bytes(b);
+    return b;
+  }
+
   /// The slot's first shape.
   T *data(Slot s) { return classes_[s.cls].data(s.index); }
   const T *data(Slot s) const { return classes_[s.cls].data(s.index); }
@@ -1246,6 +1264,16 @@ private:
     const T *data(std::uint32_t i) const {
       return blocks_[i >> block_shift_] + (std::size_t(i & (per_block_ - 1)) << cls_);
     }
+    void add_bytes(Bytes &b) const {
+      std::size_t stored = 0;
+      for (std::uint32_t n : sizes) stored += n;
+      const std::size_t places = blocks_.size() * per_block_ * capacity_;
+      b.shapes += stored * sizeof(T);
+      b.ids += stored * sizeof(std::uint32_t);
+      b.slack += (places - stored) * (sizeof(T) + sizeof(std::uint32_t));
+      b.index += (sizes.capacity() + free_slots.capacity()) * sizeof(std::uint32_t) +
+                 (blocks_.capacity() + id_blocks_.capacity()) * sizeof(void *);
+    }
 
   private:
     std::uint32_t cls_;
@@ -1298,11 +1326,18 @@ private:
   Sharing sharing_;
 };
 
-/// The shapes of every leaf and the handle table, kept in step: each
-/// operation on a leaf's shapes also rewrites the leaf's record (its
-/// LeafSlot, in its Node) and the location of every id it moves, so no
-/// caller fixes either. A handle's id names one stored shape; locate(id)
-/// gives its leaf and position.
+/// The shapes of every leaf, their ids and the handle table, kept in step:
+/// each operation on a leaf's shapes also rewrites the leaf's record (its
+/// LeafSlot, in its Node) and, once the table is built, the location of
+/// every id it moves, so no caller fixes either. A handle's id names one
+/// stored shape; find() gives its leaf and position.
+///
+/// The table (id -> leaf, position) is built on the first lookup of an id,
+/// by one pass over the leaves, and kept in step from then on until every
+/// id is forgotten (clear(), or the last shape given back): a tree whose
+/// handles are never looked up never holds it. Ids are given out the same
+/// way with or without it: from a count, the ids given back first (the
+/// last given back first).
 template <class T> class LeafStore {
 public:
   /// Where the shape of one id is.
@@ -1329,18 +1364,25 @@ public:
   template <int W> std::size_t slot_size(const Node<W> &leaf) const { return pool_.size(pool_slot(leaf.leaf())); }
 
   LeafStore() = default;
-  /// Deep copy, with the free ids' room for every id.
-  LeafStore(const LeafStore &o) : pool_(o.pool_), loc_(o.loc_) {
-    free_ids_.reserve(o.loc_.size());
-    free_ids_ = o.free_ids_;
+  /// Deep copy, with the table if it is built.
+  LeafStore(const LeafStore &o) : pool_(o.pool_), free_ids_(o.free_ids_), id_count_(o.id_count_) {
+    if (o.located()) {
+      loc_ = o.loc_;
+      located_.store(true, std::memory_order_relaxed);
+    }
   }
-  LeafStore(LeafStore &&) noexcept = default;
+  /// Takes o's contents; o is left with none.
+  LeafStore(LeafStore &&o) noexcept { swap(o); }
   LeafStore &operator=(const LeafStore &o) {
     LeafStore copy(o);
     swap(copy);
     return *this;
   }
-  LeafStore &operator=(LeafStore &&) noexcept = default;
+  LeafStore &operator=(LeafStore &&o) noexcept {
+    LeafStore taken(std::move(o));
+    swap(taken);
+    return *this;
+  }
 
   /// Appends `shape` with `id` to leaf n (node `leaf`), giving the leaf a
   /// slot first if it has none; the id is located there. Strong.
@@ -1359,7 +1401,7 @@ public:
         throw;
       }
     }
-    loc_[id] = Loc{n, std::uint32_t(pool_.size(s) - 1)};
+    if (built()) loc_[id] = Loc{n, std::uint32_t(pool_.size(s) - 1)};
     leaf.set_leaf(record(s));
   }
   /// Gives leaf n (node `leaf`, owning no slot) `count` shapes, moved from
@@ -1368,10 +1410,11 @@ public:
     BVH_INVARIANT(!leaf.leaf().has_slot(), "filling a leaf that owns a slot");
     typename LeafPool<T>::Slot s = pool_.allocate(count);
     leaf.set_leaf(record(s));
+    const bool located = built();
     for (std::size_t i = 0; i < count; ++i) {
       const std::uint32_t k = id(i);
       pool_.push_back(s, std::move(take(i)), k);
-      loc_[k] = Loc{n, std::uint32_t(i)};
+      if (located) loc_[k] = Loc{n, std::uint32_t(i)};
     }
     leaf.set_leaf(record(s));
   }
@@ -1382,8 +1425,10 @@ public:
     const std::uint32_t id = pool_.ids(s)[i];
     pool_.erase(s, i);
     leaf.set_leaf(record(s));
-    const std::uint32_t *ids = pool_.ids(s);
-    for (std::size_t k = i, n = pool_.size(s); k < n; ++k) loc_[ids[k]].index = std::uint32_t(k);
+    if (built()) {
+      const std::uint32_t *ids = pool_.ids(s);
+      for (std::size_t k = i, n = pool_.size(s); k < n; ++k) loc_[ids[k]].index = std::uint32_t(k);
+    }
     return id;
   }
   /// A leaf's slot set aside by erase_keeping(), for restore() or
@@ -1395,8 +1440,10 @@ public:
     const Kept old = pool_slot(leaf.leaf());
     const typename LeafPool<T>::Slot fresh = pool_.copy_without(old, i);
     leaf.set_leaf(record(fresh));
-    const std::uint32_t *ids = pool_.ids(fresh);
-    for (std::size_t k = i, n = pool_.size(fresh); k < n; ++k) loc_[ids[k]].index = std::uint32_t(k);
+    if (built()) {
+      const std::uint32_t *ids = pool_.ids(fresh);
+      for (std::size_t k = i, n = pool_.size(fresh); k < n; ++k) loc_[ids[k]].index = std::uint32_t(k);
+    }
     return old;
   }
   /// Leaf n (node `leaf`) gets its kept slot back; the one it had goes.
@@ -1418,7 +1465,7 @@ public:
   /// Locates every id of leaf n (node `leaf`) there again (after a build
   /// that had located them elsewhere was given up).
   template <int W> void relocate(const Node<W> &leaf, int n) noexcept {
-    if (!leaf.is_leaf() || !leaf.leaf().has_slot()) return;
+    if (!built() || !leaf.is_leaf() || !leaf.leaf().has_slot()) return;
     const std::uint32_t *ids = this->ids(leaf);
     for (std::uint32_t i = 0, k = leaf.leaf().count; i < k; ++i) loc_[ids[i]] = Loc{n, i};
   }
@@ -1430,54 +1477,135 @@ public:
     node.set_leaf(LeafSlot{});
   }
 
-  /// A free id (one given back first), not yet located. Strong.
+  /// A free id (one given back first), not yet located. Strong. Until
+  /// settle_ids(), every id it gives may be given back by free_id()
+  /// without allocating: the free ids keep room for them all (section 8b
+  /// takes many before inserting any).
   std::uint32_t new_id() {
     if (!free_ids_.empty()) {
       const std::uint32_t id = free_ids_.back();
       free_ids_.pop_back();
+      ++pending_;
       return id;
     }
-    if (loc_.size() == std::size_t(std::numeric_limits<std::uint32_t>::max()))
+    if (id_count_ == std::size_t(std::numeric_limits<std::uint32_t>::max()))
       throw std::length_error("BVH::insert: more shapes than 32-bit handles can name");
-    reserve_for(free_ids_, loc_.size() + 1);
-    loc_.push_back(Loc{});
-    return std::uint32_t(loc_.size() - 1);
+    reserve_for(free_ids_, std::min(id_count_ + 1, free_ids_.size() + pending_ + 1));
+    if (built()) loc_.push_back(Loc{});
+    ++pending_;
+    return std::uint32_t(id_count_++);
   }
   /// Undoes new_id() (of an insert that failed): the id is free again, as
   /// it was. `reused`: new_id() took it from the free ids (they were not
   /// empty), else it was the last one.
   void unnew_id(std::uint32_t id, bool reused) noexcept {
-    loc_[id].leaf = -1;
-    if (reused)
-      free_ids_.push_back(id);
-    else
-      loc_.pop_back();
+    if (built()) loc_[id].leaf = -1;
+    if (reused) {
+      free_ids_.push_back(id); // (never allocates: new_id() took it from there)
+    } else {
+      if (built()) loc_.pop_back();
+      --id_count_;
+    }
+  }
+  /// The ids handed out since the last call are all stored or given back:
+  /// the room new_id() kept for them goes (returned to the allocator when
+  /// it is much more than the free ids need). Never throws.
+  void settle_ids() noexcept {
+    pending_ = 0;
+    if (free_ids_.capacity() > 2 * free_ids_.size() + 64) {
+      try {
+        free_ids_.shrink_to_fit();
+      } catch (...) { // (then the room stays)
+      }
+    }
   }
   /// Ids 0 .. n - 1 taken, for construct() (the store holds no id).
   void take_first_ids(std::size_t n) {
-    BVH_INVARIANT(loc_.empty(), "construct() over ids in use");
-    reserve_for(free_ids_, n);
-    loc_.resize(n);
+    BVH_INVARIANT(id_count_ == 0, "construct() over ids in use");
+    if (built()) loc_.resize(n);
+    id_count_ = n;
   }
-  /// Gives `id` back; `none_stored`: the tree is empty, so every id is
-  /// forgotten.
+  /// Room for giving one more id back (before an erase, whose free_id()
+  /// must not allocate). Strong.
+  void reserve_id_back() { reserve_for(free_ids_, std::min(id_count_, free_ids_.size() + pending_ + 1)); }
+  /// Gives `id` back (room for it was made: new_id(), reserve_id_back());
+  /// `none_stored`: the tree is empty, so every id is forgotten.
   void free_id(std::uint32_t id, bool none_stored) noexcept {
-    loc_[id].leaf = -1;
     if (none_stored) {
-      loc_.clear();
-      free_ids_.clear();
-    } else {
-      free_ids_.push_back(id);
+      forget_ids();
+      return;
+    }
+    if (built()) loc_[id].leaf = -1;
+    BVH_INVARIANT(free_ids_.size() < free_ids_.capacity(), "an id given back without room for it");
+    free_ids_.push_back(id);
+  }
+
+  /// True once the table is built: then contains() and locate() answer.
+  /// (validate checks the table only then.)
+  bool located() const noexcept { return located_.load(std::memory_order_acquire); }
+  /// Builds the table if it is not built, by one pass over the leaves of
+  /// the tree at `root` in `nodes` (what this store's records describe).
+  /// Const, and safe while other threads call it or read the tree: the
+  /// first builds under a lock, the others wait for it; the table is
+  /// published only when complete. False when memory for it ran out (it
+  /// stays unbuilt). Never throws.
+  template <int W> bool locate_all(const NodeStore<W> &nodes, int root) const noexcept {
+    if (located()) return true;
+    try {
+      std::lock_guard<std::mutex> hold(build_lock_);
+      if (located_.load(std::memory_order_relaxed)) return true;
+      std::vector<Loc> loc(id_count_);
+      for (int n = root < 0 ? -1 : nodes.leftmost_leaf(root); n >= 0; n = nodes.next_leaf(n)) {
+        const Node<W> &leaf = nodes.node(n);
+        if (!leaf.leaf().has_slot()) continue;
+        const std::uint32_t *ids = this->ids(leaf);
+        for (std::uint32_t i = 0, k = leaf.leaf().count; i < k; ++i) loc[ids[i]] = Loc{n, i};
+      }
+      loc_.swap(loc);
+      located_.store(true, std::memory_order_release);
+      return true;
+    } catch (...) { // (std::bad_alloc, or the lock's std::system_error)
+      return false;
     }
   }
-  /// True when `id` names a stored shape.
+  /// True when `id` names a stored shape, whose place then goes to *at
+  /// (when given). By the table, built first if need be (locate_all, so
+  /// also safe on several threads at once); without memory for it, by a
+  /// walk over the leaves. Never throws.
+  template <int W> bool find(const NodeStore<W> &nodes, int root, std::uint32_t id, Loc *at) const noexcept {
+    if (root < 0) return false; // (an empty tree builds no table)
+    if (locate_all(nodes, root)) {
+      if (!contains(id)) return false;
+      if (at) *at = loc_[id];
+      return true;
+    }
+    for (int n = nodes.leftmost_leaf(root); n >= 0; n = nodes.next_leaf(n)) {
+      const Node<W> &leaf = nodes.node(n);
+      if (!leaf.leaf().has_slot()) continue;
+      const std::uint32_t *ids = this->ids(leaf);
+      for (std::uint32_t i = 0, k = leaf.leaf().count; i < k; ++i)
+        if (ids[i] == id) {
+          if (at) *at = Loc{n, i};
+          return true;
+        }
+    }
+    return false;
+  }
+  /// By the table (located()): true when `id` names a stored shape.
   bool contains(std::uint32_t id) const { return id < loc_.size() && loc_[id].leaf >= 0; }
-  /// Where id's shape is (contains(id)).
+  /// By the table (located()): where id's shape is (contains(id)).
   const Loc &locate(std::uint32_t id) const { return loc_[id]; }
   /// Ids in use or free.
-  std::size_t id_count() const { return loc_.size(); }
+  std::size_t id_count() const { return id_count_; }
+  /// Ids in the table (located(): id_count()).
+  std::size_t table_size() const { return loc_.size(); }
   /// The ids given back.
   const std::vector<std::uint32_t> &free_ids() const { return free_ids_; }
+  /// Bytes of the table (0 while it is not built) and of the free ids.
+  std::size_t table_bytes() const noexcept { return located() ? loc_.capacity() * sizeof(Loc) : 0; }
+  std::size_t free_id_bytes() const noexcept { return free_ids_.capacity() * sizeof(std::uint32_t); }
+  /// The pool's bytes (LeafPool::bytes).
+  typename LeafPool<T>::Bytes pool_bytes() const { return pool_.bytes(); }
 
   /// Destroys every shape; the ids stay taken (update() of the last shape
   /// inserts it again under its id).
@@ -1485,8 +1613,7 @@ public:
   /// Destroys every shape and forgets every id.
   void clear() noexcept {
     clear_shapes();
-    loc_.clear();
-    free_ids_.clear();
+    forget_ids();
   }
   /// The pool's reserve_spare() and share() (LeafPool).
   void reserve_spare(std::size_t spare, std::size_t largest) { pool_.reserve_spare(spare, largest); }
@@ -1498,6 +1625,11 @@ public:
     std::swap(pool_, o.pool_);
     loc_.swap(o.loc_);
     free_ids_.swap(o.free_ids_);
+    std::swap(id_count_, o.id_count_);
+    std::swap(pending_, o.pending_);
+    const bool was = built();
+    located_.store(o.built(), std::memory_order_relaxed);
+    o.located_.store(was, std::memory_order_relaxed);
   }
 
 private:
@@ -1505,10 +1637,26 @@ private:
   LeafSlot record(const typename LeafPool<T>::Slot &s) const {
     return LeafSlot{s.index, s.cls, std::uint32_t(pool_.size(s))};
   }
+  /// The table is built (for the changes, which no reader runs beside).
+  bool built() const noexcept { return located_.load(std::memory_order_relaxed); }
+  /// Every id forgotten, the table unbuilt, their memory given back.
+  void forget_ids() noexcept {
+    std::vector<Loc>().swap(loc_);
+    std::vector<std::uint32_t>().swap(free_ids_);
+    id_count_ = 0;
+    pending_ = 0;
+    located_.store(false, std::memory_order_relaxed);
+  }
 
   LeafPool<T> pool_;
-  std::vector<Loc> loc_;                // by id: where its shape is
   std::vector<std::uint32_t> free_ids_; // ids given back, reused first
+  std::size_t id_count_ = 0;            // ids in use or free: 0 .. id_count_ - 1
+  std::size_t pending_ = 0;             // ids new_id() gave since settle_ids()
+  // The table: by id, where its shape is; built by a const lookup, hence
+  // mutable, and published by located_ (release) once complete.
+  mutable std::vector<Loc> loc_;
+  mutable std::atomic<bool> located_{false};
+  mutable std::mutex build_lock_;
 };
 
 // ===========================================================================
@@ -1571,6 +1719,14 @@ template <class T, class Tr, int W> struct Core {
   void clear() noexcept {
     clear_nodes();
     leaves.clear();
+  }
+
+  /// Where the shape of `id` (a stored one) is: LeafStore::find, which
+  /// builds the handle table on first use. Never throws.
+  typename LeafStore<T>::Loc locate(std::uint32_t id) const noexcept {
+    typename LeafStore<T>::Loc at;
+    leaves.find(nodes, root, id, &at);
+    return at;
   }
 
   /// True when a node at `depth` may split.
@@ -2509,6 +2665,7 @@ template <class T, class Tr, int W> void commit_erase(Core<T, Tr, W> &core, cons
 
 /// erase_at() and its rebalance, then the id is given back. Strong.
 template <class T, class Tr, int W> void erase_shape(Core<T, Tr, W> &core, int leaf, std::size_t index) {
+  core.leaves.reserve_id_back();
   std::uint32_t id;
   if (core.size == 1) {
     id = core.leaves.ids(core.nodes.node(leaf))[index];
@@ -2538,7 +2695,7 @@ template <class T> void assign(T &dst, const T &src) {
 /// cannot throw, else as strong as T's copy assignment): if the insert
 /// throws, the erase is undone.
 template <class T, class Tr, int W> void update_shape(Core<T, Tr, W> &core, std::uint32_t id, const T &moved) {
-  const typename LeafStore<T>::Loc at = core.leaves.locate(id);
+  const typename LeafStore<T>::Loc at = core.locate(id);
   NodeStore<W> &nodes = core.nodes;
   const Box box = box_of(core.traits, moved);
   if (nodes.box(at.leaf).contains(box) || core.size == 1) {
@@ -3010,7 +3167,7 @@ template <class T, class Tr, int W> bool validate_node(const Core<T, Tr, W> &cor
     for (const T &s : shapes) tight.extend(box_of(core.traits, s));
     count = shapes.size();
     const std::uint32_t *ids = core.leaves.ids(node);
-    for (std::size_t i = 0; i < shapes.size(); ++i)
+    for (std::size_t i = 0; i < shapes.size() && core.leaves.located(); ++i)
       if (!core.leaves.contains(ids[i]) || core.leaves.locate(ids[i]).leaf != n ||
           core.leaves.locate(ids[i]).index != i)
         return why = "shape " + std::to_string(i) + "'s id does not locate it", false;
@@ -3045,8 +3202,11 @@ template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, st
     if (core.size != 0) return fail(-1, "empty tree with size " + std::to_string(core.size));
     if (nodes.live() != 0) return fail(-1, "empty tree with live nodes");
     if (core.leaves.id_count() != 0 || !core.leaves.free_ids().empty()) return fail(-1, "empty tree with ids");
+    if (core.leaves.located()) return fail(-1, "empty tree with a handle table");
     return true;
   }
+  // Every id below the count is stored exactly once or free (listed once).
+  std::vector<char> id_seen(core.leaves.id_count(), 0);
   std::vector<char> is_free(nodes.capacity(), 0);
   for (int f : nodes.free_list()) {
     if (f < 0 || std::size_t(f) >= nodes.capacity() || is_free[std::size_t(f)]) return fail(f, "bad free-list entry");
@@ -3061,7 +3221,18 @@ template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, st
       bad = n;
       return kStop;
     }
-    if (nodes.node(n).is_leaf()) counted += nodes.info(n).count;
+    if (nodes.node(n).is_leaf()) {
+      counted += nodes.info(n).count;
+      const std::uint32_t *ids = core.leaves.ids(nodes.node(n));
+      for (std::size_t i = 0; i < nodes.info(n).count; ++i) {
+        if (ids[i] >= id_seen.size() || id_seen[ids[i]]) {
+          what = "id " + std::to_string(ids[i]) + " of shape " + std::to_string(i) + " is out of range or stored twice";
+          bad = n;
+          return kStop;
+        }
+        id_seen[ids[i]] = 1;
+      }
+    }
     return all_children(nodes.node(n));
   });
   if (bad >= 0) return fail(bad, what);
@@ -3069,12 +3240,14 @@ template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, st
   if (counted != core.size) return fail(core.root, "size() disagrees with the shapes stored");
   if (core.leaves.id_count() != core.size + core.leaves.free_ids().size())
     return fail(-1, "ids in use and free do not add up");
-  std::vector<char> id_free(core.leaves.id_count(), 0);
+  const bool located = core.leaves.located();
   for (std::uint32_t id : core.leaves.free_ids()) {
-    if (id >= core.leaves.id_count() || core.leaves.contains(id) || id_free[id])
+    if (id >= id_seen.size() || id_seen[id] || (located && core.leaves.contains(id)))
       return fail(-1, "free id " + std::to_string(id) + " is in use or listed twice");
-    id_free[id] = 1;
+    id_seen[id] = 1;
   }
+  if (located && core.leaves.table_size() != core.leaves.id_count())
+    return fail(-1, "the handle table's length is not the ids'");
   return true;
 }
 
@@ -3389,7 +3562,7 @@ template <class T, class Tr, int W>
   for (const Lane &lane : frontier.lanes)
     for (std::size_t k = 0; k < lane.done; ++k) {
       if (lane.items[k] < first) continue;
-      const typename LeafStore<T>::Loc at = core.leaves.locate(ids[lane.items[k] - next]);
+      const typename LeafStore<T>::Loc at = core.locate(ids[lane.items[k] - next]);
       try {
         erase_shape(core, at.leaf, at.index);
       } catch (...) {
@@ -3672,7 +3845,8 @@ std::vector<std::size_t> insert_disjoint(Core<T, Tr, W> &core, const std::vector
 /// T&)`, render_recolor() `setColor(const Color&)`. Shapes live only in
 /// leaves, each exactly once; every node knows the tight box of its
 /// subtree. The const members only read the tree: any number of threads may
-/// call them at once while no thread changes the tree.
+/// call them at once while no thread changes the tree (the first handle
+/// lookup builds the handle table, under a lock: see contains()).
 ///
 /// Exceptions (docs/library.txt, EXCEPTIONS): T's copy and move may throw,
 /// its destructor must not (static_assert); where stored shapes move the
@@ -3858,6 +4032,46 @@ public:
   /// Number of nodes, inner and leaf.
   std::size_t node_count() const noexcept { return core_.nodes.live(); }
 
+  /// The tree's memory by part, in bytes (memory()). Only what the tree
+  /// holds between calls is counted, plus build_transient, what a build
+  /// holds while it runs.
+  struct memory_use {
+    std::size_t nodes = 0;      ///< the node arrays (Node and Info, in whole blocks) and the free-node list
+    std::size_t shapes = 0;     ///< the stored shapes: size() * sizeof(T)
+    std::size_t shape_ids = 0;  ///< the id kept beside each stored shape: size() * 4
+    std::size_t leaf_slack = 0; ///< leaf pool places holding no shape (room in slots, free slots, blocks not yet filled), with their ids' places
+    std::size_t pool_index = 0; ///< the leaf pool's bookkeeping: slot sizes, free-slot lists, block tables
+    std::size_t handles = 0;    ///< the handle table (id -> leaf and position), 0 until a handle is first looked up
+    std::size_t free_ids = 0;   ///< the ids given back, kept for later inserts, with their room
+    std::size_t scratch = 0;    ///< build memory kept for the next split or rebuild (the largest one's)
+    /// Not held now: what construct() of size() shapes holds besides the
+    /// finished tree while it runs, and gives back when it returns: a copy
+    /// of every shape (the course rule's items with their centre and input
+    /// position; the SAH rule's shapes with their ids).
+    std::size_t build_transient = 0;
+    /// Everything held now (build_transient is not).
+    std::size_t total() const noexcept {
+      return nodes + shapes + shape_ids + leaf_slack + pool_index + handles + free_ids + scratch;
+    }
+  };
+  /// The bytes the tree holds, by part. O(leaves).
+  memory_use memory() const noexcept {
+    memory_use m;
+    m.nodes = core_.nodes.bytes();
+    const auto pool = core_.leaves.pool_bytes();
+    m.shapes = pool.shapes;
+    m.shape_ids = pool.ids;
+    m.leaf_slack = pool.slack;
+    m.pool_index = pool.index;
+    m.handles = core_.leaves.table_bytes();
+    m.free_ids = core_.leaves.free_id_bytes();
+    const auto &scratch = core_.scratch.value;
+    m.scratch = scratch.items.capacity() * sizeof(scratch.items[0]) + scratch.tasks.capacity() * sizeof(scratch.tasks[0]);
+    m.build_transient =
+        core_.size * (core_.rule == BuildRule::course ? sizeof(detail::Item<T, Traits>) : sizeof(detail::Tagged<T>));
+    return m;
+  }
+
   /// Chooses the build rule for later builds (course by default: the
   /// course's expected output follows it).
   void set_build_rule(BuildRule rule) noexcept { core_.rule = rule; }
@@ -3893,8 +4107,10 @@ public:
       detail::insert_shape(core_, shape, id);
     } catch (...) {
       core_.leaves.unnew_id(id, reused);
+      core_.leaves.settle_ids();
       throw;
     }
+    core_.leaves.settle_ids();
     return handle{id};
   }
 
@@ -3915,11 +4131,21 @@ public:
   /// a throw while several threads insert at once, it holds those shapes,
   /// but not in the loop's shape or with the loop's handles.
   std::vector<std::size_t> insert_disjoint(const std::vector<T> &candidates, unsigned threads = 0) {
+    struct Settle { // (the ids' room goes, also after a throw)
+      detail::LeafStore<T> &leaves;
+      ~Settle() { leaves.settle_ids(); }
+    } settle{core_.leaves};
     return detail::insert_disjoint(core_, candidates, threads);
   }
 
-  /// True when `h` names a stored shape.
-  bool contains(handle h) const noexcept { return core_.leaves.contains(h.id); }
+  /// True when `h` names a stored shape. The first lookup of any handle
+  /// (contains, get, find, erase, update) builds the table that locates
+  /// them all, in one O(n) pass, kept from then on until the tree is
+  /// emptied; before, the tree holds none (docs/library.txt, HANDLES).
+  /// Like every const member it may run on several threads at once: the
+  /// first builds the table under a lock and the others wait. Never
+  /// throws: without memory for the table, it walks the leaves instead.
+  bool contains(handle h) const noexcept { return core_.leaves.find(core_.nodes, core_.root, h.id, nullptr); }
   /// The stored shape named by `h` (valid: see contains()).
   const T &get(handle h) const {
     BVH_ASSERT(contains(h), "get() with a handle that names no stored shape");
@@ -3928,7 +4154,7 @@ public:
   /// An iterator to the shape named by `h` (valid).
   iterator find(handle h) const {
     BVH_ASSERT(contains(h), "find() with a handle that names no stored shape");
-    const auto &at = core_.leaves.locate(h.id);
+    const auto at = core_.locate(h.id);
     return iterator(this, at.leaf, at.index);
   }
 
@@ -3936,7 +4162,7 @@ public:
   /// iterators. Strong (a rebuild for balance after it: as for insert()).
   void erase(handle h) {
     BVH_ASSERT(contains(h), "erase() with a handle that names no stored shape");
-    const auto at = core_.leaves.locate(h.id);
+    const auto at = core_.locate(h.id);
     detail::erase_shape(core_, at.leaf, at.index);
   }
   /// Removes the shape at `pos` and returns the iterator to the shape that

@@ -787,6 +787,37 @@ void run_workload(const Options &opt, const Workload &w, const std::vector<T> &c
 }
 
 // ---------------------------------------------------------------------------
+// Bytes per shape by part (BVH::memory()) of the loop's tree, rebuilt from
+// its kept set in order (the same inserts, so the same tree), before and
+// after a handle lookup, and of construct() on the same shapes.
+
+template <class T> void memory_parts(const std::vector<T> &kept, std::ostream &out) {
+  if (kept.empty()) return;
+  const double n = double(kept.size());
+  auto line = [&](const char *what, const typename BVH<T>::memory_use &m) {
+    char buf[512];
+    std::snprintf(buf, sizeof buf,
+                  "    %-22s nodes %5.1f  shapes %5.1f  ids %4.1f  leaf slack %5.1f  pool index %4.1f  handles %4.1f"
+                  "  free ids %4.1f  scratch %4.1f  = %6.1f\n",
+                  what, m.nodes / n, m.shapes / n, m.shape_ids / n, m.leaf_slack / n, m.pool_index / n, m.handles / n,
+                  m.free_ids / n, m.scratch / n, m.total() / n);
+    out << buf;
+  };
+  out << "  bytes per kept shape by part (BVH::memory(); sizeof(T) = " << sizeof(T) << "):\n";
+  BVH<T> tree(4, 0);
+  for (const T &s : kept) tree.insert(s);
+  line("the loop's tree", tree.memory());
+  (void)tree.contains(typename BVH<T>::handle{0});
+  line("after a handle lookup", tree.memory());
+  BVH<T> built(4, 0);
+  built.construct(kept);
+  const typename BVH<T>::memory_use b = built.memory();
+  line("construct()", b);
+  out << "    construct()'s transient build memory (its items, freed when it returns): "
+      << fmt("%.1f", b.build_transient / n) << " bytes per shape\n";
+}
+
+// ---------------------------------------------------------------------------
 // SAH quality of incremental insertion versus the bulk build, over the same
 // shapes: the area sums of the course's statistics report.
 
@@ -1161,11 +1192,11 @@ int main(int argc, char **argv) {
     if (!load(opt, w2.scene, c)) return 1;
     Ids kept_ids;
     run_workload(opt, w2, c, static_cast<std::vector<Disk> *>(nullptr), rep, &kept_ids);
-    if (opt.only.empty()) {
-      std::vector<Disk> kept;
-      for (std::uint32_t i : kept_ids) kept.push_back(c[i]);
-      std::vector<Disk>().swap(c);
-      sah_section(opt, kept, "W2's kept set", rep.extra);
+    std::vector<Disk> kept;
+    for (std::uint32_t i : kept_ids) kept.push_back(c[i]);
+    std::vector<Disk>().swap(c);
+    if (opt.only.empty()) sah_section(opt, kept, "W2's kept set", rep.extra);
+    {
       for (const Row &row : rep.rows)
         if (row.workload == w2.title && row.method == "ours" && !row.times.empty()) {
           const double shapes_mb = double(sizeof(Disk)) * double(row.kept) / (1024.0 * 1024.0);
@@ -1176,6 +1207,7 @@ int main(int argc, char **argv) {
                     << " MB for " << row.kept << " kept disks of sizeof(Disk) = " << sizeof(Disk)
                     << " bytes = " << fmt("%.1f", shapes_mb) << " MB of shapes: " << fmt("%.2f", added_mb / shapes_mb)
                     << " x the bytes of the shapes (kept ids vector included, 4 bytes per kept shape).\n";
+          memory_parts(kept, rep.extra);
           for (const Row &other : rep.rows)
             if (other.workload == w2.title && other.method != "ours" && other.note.empty())
               rep.extra << "  " << other.label << ": +" << fmt("%.1f", (other.peak_kb - other.start_kb) / 1024.0)

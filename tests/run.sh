@@ -194,6 +194,7 @@ unit_tests() {
   run_suite test_intersect "$BUILD/test_intersect"
   run_suite test_dynamic "$BUILD/test_dynamic"
   run_suite test_moving "$BUILD/test_moving"
+  run_suite test_lazy_handles "$BUILD/test_lazy_handles"
   run_suite test_parse "$BUILD/test_parse"
   run_suite test_names "$BUILD/test_names"
   run_suite test_disjoint "$BUILD/test_disjoint"
@@ -209,7 +210,7 @@ unit_tests() {
 # was built: here their output ($BUILD/check/test_*.out) is read.
 unit_tests_quick() {
   local t out log rc
-  for t in bvh threads intersect dynamic moving parse; do
+  for t in bvh threads intersect dynamic moving lazy_handles parse; do
     out=$BUILD/check/test_$t.out
     log=$(logname "test_$t")
     if [ ! -f "$out" ]; then
@@ -230,6 +231,7 @@ sanitizers() {
   BVH_TEST_SCALE=0.3 run_suite test_intersect_sanitized "$BUILD/test_intersect_san"
   BVH_TEST_SCALE=0.5 run_suite test_dynamic_sanitized "$BUILD/test_dynamic_san"
   BVH_TEST_SCALE=0.5 run_suite test_moving_sanitized "$BUILD/test_moving_san"
+  BVH_TEST_SCALE=0.3 run_suite test_lazy_handles_sanitized "$BUILD/test_lazy_handles_san"
   BVH_TEST_SCALE=0.1 run_suite test_parse_sanitized "$BUILD/test_parse_san"
   run_suite test_names_sanitized "$BUILD/test_names_san"
   BVH_TEST_SCALE=0.3 run_suite test_disjoint_sanitized "$BUILD/test_disjoint_san"
@@ -256,6 +258,7 @@ portable() {
     run_suite test_intersect_libcxx "$BUILD/test_intersect_libcxx"
     run_suite test_dynamic_libcxx "$BUILD/test_dynamic_libcxx"
     run_suite test_moving_libcxx "$BUILD/test_moving_libcxx"
+    run_suite test_lazy_handles_libcxx "$BUILD/test_lazy_handles_libcxx"
     run_suite test_parse_libcxx "$BUILD/test_parse_libcxx"
     run_suite test_threads_libcxx "$BUILD/test_threads_libcxx"
     run_suite test_names_libcxx "$BUILD/test_names_libcxx"
@@ -300,6 +303,7 @@ asserts() {
 tsan() {
   BVH_TEST_SCALE=0.25 run_suite test_threads_under_thread_sanitizer "$BUILD/test_threads_tsan"
   BVH_TEST_SCALE=0.2 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_disjoint_tsan"
+  BVH_TEST_SCALE=0.2 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lazy_handles_tsan"
 }
 
 # bvh.h alone in the course's framework (stand-ins written from the spec),
@@ -490,6 +494,7 @@ valgrind_layer() {
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_intersect"
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_dynamic"
   BVH_TEST_SCALE=0.5 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_moving"
+  BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lazy_handles"
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_parse"
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_disjoint"
   # (nouserintercepts: the test's own operator new, which injects the faults, stays in place)

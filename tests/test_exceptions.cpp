@@ -35,6 +35,7 @@ namespace fault {
 long alloc_countdown = -1; // the allocation that throws: 0 = the next one
 long copy_countdown = -1;  // the copy or assignment of a shape that throws
 long intersect_countdown = -1;
+bool alloc_always = false; // every allocation throws (the lazy handle table's case)
 bool fired = false;
 
 struct Injected : std::exception {
@@ -68,7 +69,7 @@ inline void on_copy() {
 #pragma GCC diagnostic ignored "-Wmismatched-new-delete"
 #endif
 void *operator new(std::size_t n) {
-  if (fault::alloc_countdown >= 0 && fault::alloc_countdown-- == 0) {
+  if (fault::alloc_always || (fault::alloc_countdown >= 0 && fault::alloc_countdown-- == 0)) {
     fault::fired = true;
     throw std::bad_alloc();
   }
@@ -655,6 +656,68 @@ template <class T> void query_case() {
 }
 TEST(queries_with_throwing_intersect_TDisk) { query_case<TDisk>(); }
 TEST(queries_with_throwing_intersect_MDisk) { query_case<MDisk>(); }
+
+// ---------------------------------------------------------------------------
+// The handle table, built on the first lookup (issue 19): with the k-th
+// allocation failing, contains() and get() still answer (by a walk over
+// the leaves) and the table stays unbuilt; erase(handle) on a tree without
+// the table is strong for every k.
+
+template <class T> void lazy_table_case() {
+  std::mt19937 rng(base_seed() + 7);
+  for (const Config &c : configs()) {
+    note(config_name(c));
+    const Subject<T> base = make_subject<T>(rng, tree_size(), c.split, c.depth, c.margin, c.sah);
+    CHECK_EQ(base.tree.memory().handles, 0u); // (inserts only: no lookup yet)
+    std::map<std::uint32_t, Key> named;       // by iteration, which needs no table
+    std::vector<Key> order;
+    for (auto it = base.tree.begin(); it != base.tree.end(); ++it) {
+      named[it.id().id] = key(*it);
+      order.push_back(key(*it));
+    }
+    {
+      Subject<T> s = base;
+      fault::alloc_always = true;
+      bool right = true;
+      for (auto h : s.live)
+        right = right && s.tree.contains(h) && key(s.tree.get(h)) == named.at(h.id) && s.tree.find(h).id() == h;
+      const bool unbuilt = s.tree.memory().handles == 0;
+      fault::alloc_always = false;
+      note(config_name(c) + " lookups without memory");
+      CHECK(right);
+      CHECK(unbuilt);
+      CHECK(s.tree.validate());
+      CHECK(s.tree.contains(s.live[0])); // memory again: the table is built now
+      CHECK(s.tree.memory().handles > 0);
+      CHECK(s.tree.validate());
+    }
+    const auto h = base.live[rng() % base.live.size()];
+    for (long k = 0;; ++k) {
+      Subject<T> s = base;
+      arm(Fault::alloc, k);
+      bool threw = false;
+      try {
+        s.tree.erase(h);
+      } catch (const std::bad_alloc &) {
+        threw = true;
+      }
+      const bool met = disarm();
+      note(config_name(c) + " erase(handle) without the table, alloc #" + std::to_string(k));
+      CHECK(s.tree.validate());
+      std::vector<Key> now;
+      for (const T &x : s.tree) now.push_back(key(x));
+      std::vector<Key> want = order;
+      if (!threw) want.erase(std::find(want.begin(), want.end(), named.at(h.id)));
+      CHECK(now == want);
+      for (auto g : s.live)
+        if (threw || g != h) CHECK(s.tree.contains(g) && key(s.tree.get(g)) == named.at(g.id));
+      if (!met) break;
+      points()[std::string(type_name<T>()) + " erase(handle), no table / alloc"] += 1;
+    }
+  }
+}
+TEST(first_handle_lookup_without_memory_TDisk) { lazy_table_case<TDisk>(); }
+TEST(first_handle_lookup_without_memory_MDisk) { lazy_table_case<MDisk>(); }
 
 // The issue's table: injection points per operation (over every
 // configuration and trial of the cases above).
