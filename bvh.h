@@ -473,6 +473,46 @@ inline std::array<std::size_t, 3> thirds(std::size_t m) {
   return {base + (extra > 0), base + (extra > 1), base};
 }
 
+/// How a cut by count (CourseRule, InOrderRule, Layout) shares a node's
+/// shapes among its children at width W. At the course's width 3: thirds.
+/// At other widths, so that nodes come out full: with c the capacity of
+/// the smallest subtree that holds m / W shapes (split_threshold shapes a
+/// leaf, W children a node, within the depth limit), the node gets
+/// ceil(m / c) children, their sizes differing by at most one, larger
+/// first. At the depth limit's last level the children are leaves of any
+/// size: W of them.
+template <int W> struct CountCut {
+  std::size_t split_threshold;
+  int depth_limit; ///< <= 0: none
+  /// The group sizes of m shapes at a node at `depth` into size[0 .. W)
+  /// (zeros past the last group).
+  void sizes(std::size_t m, int depth, std::size_t size[W]) const {
+    if constexpr (W == 3) {
+      const std::array<std::size_t, 3> t = thirds(m);
+      for (int g = 0; g < 3; ++g) size[g] = t[std::size_t(g)];
+    } else {
+      std::size_t groups = W;
+      if (depth_limit <= 0 || depth + 1 < depth_limit) {
+        // Children may split further: the least capacity c with W c >= m.
+        std::size_t c = split_threshold;
+        for (int level = depth + 1; c < (m + W - 1) / W && (depth_limit <= 0 || level + 1 < depth_limit); ++level)
+          c = c > std::numeric_limits<std::size_t>::max() / W ? std::numeric_limits<std::size_t>::max() : c * W;
+        groups = std::min<std::size_t>(W, (m + c - 1) / c);
+      }
+      groups = std::max<std::size_t>(std::min<std::size_t>(groups, m), m > 1 ? 2 : 1);
+      const std::size_t base = m / groups, extra = m % groups;
+      for (std::size_t g = 0; g < std::size_t(W); ++g) size[g] = g < groups ? base + (g < extra) : 0;
+    }
+  }
+  /// The cut of [begin, end) at `depth`: cut[g] .. cut[g + 1] is group g.
+  void cut(std::size_t begin, std::size_t end, int depth, std::size_t cut[W + 1]) const {
+    std::size_t size[W];
+    sizes(end - begin, depth, size);
+    cut[0] = begin;
+    for (int g = 0; g < W; ++g) cut[g + 1] = cut[g] + size[g];
+  }
+};
+
 /// Calls f(0) ... f(count - 1), spread over `threads` threads (the caller
 /// is one of them). If a thread cannot be started, the others do its share;
 /// the first exception thrown by f is rethrown once all have finished.
@@ -1732,6 +1772,8 @@ template <class T, class Tr, int W> struct Core {
   /// True when a node at `depth` may split.
   bool may_split_at(int depth) const { return depth_limit == 0 || depth < depth_limit; }
   /// True when a node of `count` shapes at `depth` becomes a leaf.
+  /// How cuts by count share a node's shapes at this width.
+  CountCut<W> counts() const { return CountCut<W>{std::size_t(split_threshold), depth_limit}; }
   bool is_leaf_size(std::size_t count, int depth) const {
     return count <= std::size_t(split_threshold) || !may_split_at(depth);
   }
@@ -1870,6 +1912,14 @@ inline void cut_in_thirds(std::size_t begin, std::size_t end, std::size_t cut[4]
   for (int g = 0; g < 3; ++g) cut[g + 1] = cut[g] + size[std::size_t(g)];
 }
 
+
+/// What CourseRule carries down to a node.
+struct CourseState {
+  unsigned axes_used; // bit 0: x, bit 1: y, by the node's ancestors
+  Key parent_key;     // the order the node's shapes arrive in
+  bool has_parent_key;
+};
+
 /// The build rule (the course's, which its expected output follows). A
 /// node's shapes are ordered by their centre on the longer side of its box
 /// (x when dx >= dy), ties kept in their current order, and cut in thirds
@@ -1886,17 +1936,20 @@ inline void cut_in_thirds(std::size_t begin, std::size_t end, std::size_t cut[4]
 /// Each shape travels with its centre and input position (Item), so the
 /// selections, box scans and the final copy into the leaves stream through
 /// memory instead of chasing indices.
-template <class T, class Tr> class CourseRule {
+///
+/// At widths other than 3 the groups are CountCut's, and they are made by
+/// halving: the range of groups is cut in two at a group boundary, by
+/// selection on the longer side of the centres of the shapes in it, and
+/// each half again, so W children collapse log2(W) levels of a median
+/// tree.
+template <class T, class Tr, int W> class CourseRule {
 public:
-  struct State {
-    unsigned axes_used; // bit 0: x, bit 1: y, by the node's ancestors
-    Key parent_key;     // the order the node's shapes arrive in
-    bool has_parent_key;
-  };
+  using State = CourseState;
   /// `src`: the shapes the items were made from, for their ids; nullptr
   /// when the ids are the input positions (construct).
-  CourseRule(const Tr &traits, std::vector<Item<T, Tr>> &items, const std::vector<Tagged<T>> *src)
-      : traits_(traits), items_(items), src_(src) {}
+  CourseRule(const Tr &traits, std::vector<Item<T, Tr>> &items, const std::vector<Tagged<T>> *src,
+             CountCut<W> counts)
+      : traits_(traits), items_(items), src_(src), counts_(counts) {}
   Box box(std::size_t i) const { return box_of(traits_, items_[i].shape); }
   T &shape(std::size_t i) { return items_[i].shape; }
   std::uint32_t id(std::size_t i) const { return src_ ? (*src_)[items_[i].index].id : items_[i].index; }
@@ -1908,23 +1961,67 @@ public:
     else
       std::sort(first, last, [](const Item<T, Tr> &a, const Item<T, Tr> &b) { return a.index < b.index; });
   }
-  void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State child[3]) {
+  void cut(const BuildTask<State> &t, int depth, const Box &box, std::size_t cut[W + 1], State child[W]) {
     const int axis = box.dx() >= box.dy() ? 0 : 1;
-    const Key key{axis, (t.state.axes_used & (2u >> axis)) != 0};
-    cut_in_thirds(t.begin, t.end, cut);
     const auto first = items_.begin();
-    with_order(key, [&](auto order) {
-      std::nth_element(first + long(cut[0]), first + long(cut[1]), first + long(cut[3]), order);
-      std::nth_element(first + long(cut[1]), first + long(cut[2]), first + long(cut[3]), order);
-    });
-    for (int g = 0; g < 3; ++g) child[g] = State{t.state.axes_used | (1u << axis), key, true};
+    if constexpr (W == 3) {
+      const Key key{axis, (t.state.axes_used & (2u >> axis)) != 0};
+      cut_in_thirds(t.begin, t.end, cut);
+      with_order(key, [&](auto order) {
+        std::nth_element(first + long(cut[0]), first + long(cut[1]), first + long(cut[3]), order);
+        std::nth_element(first + long(cut[1]), first + long(cut[2]), first + long(cut[3]), order);
+      });
+      for (int g = 0; g < 3; ++g) child[g] = State{t.state.axes_used | (1u << axis), key, true};
+    } else {
+      counts_.cut(t.begin, t.end, depth, cut);
+      int groups = 0;
+      while (groups < W && cut[groups + 1] > cut[groups]) ++groups;
+      // Halving [g0, g1) of the groups; an explicit stack (at most log2(W) deep).
+      struct Half {
+        int g0, g1;
+        int axis;
+      };
+      Half stack[W];
+      int top = 0;
+      stack[top++] = Half{0, groups, axis};
+      while (top > 0) {
+        const Half h = stack[--top];
+        if (h.g1 - h.g0 < 2) {
+          for (int g = h.g0; g < h.g1; ++g) child[g] = State{3u, Key{h.axis, true}, true};
+          continue;
+        }
+        const int mid = (h.g0 + h.g1) / 2;
+        const Key key{h.axis, true};
+        with_order(key, [&](auto order) {
+          std::nth_element(first + long(cut[h.g0]), first + long(cut[mid]), first + long(cut[h.g1]), order);
+        });
+        stack[top++] = Half{mid, h.g1, longer_axis(cut[mid], cut[h.g1], h.axis)};
+        stack[top++] = Half{h.g0, mid, longer_axis(cut[h.g0], cut[mid], h.axis)};
+      }
+    }
   }
   static State root_state() { return State{0u, Key{0, false}, false}; }
 
 private:
+  /// The longer side of the centres of items [begin, end); `ties` when
+  /// they span no area (one centre, or on a line both ways).
+  int longer_axis(std::size_t begin, std::size_t end, int ties) const {
+    if (end - begin < 2) return ties;
+    double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+    for (std::size_t i = begin; i < end; ++i) {
+      const auto &c = items_[i].centre();
+      x0 = std::min(x0, double(c.x));
+      x1 = std::max(x1, double(c.x));
+      y0 = std::min(y0, double(c.y));
+      y1 = std::max(y1, double(c.y));
+    }
+    if (x1 - x0 == y1 - y0) return ties;
+    return x1 - x0 > y1 - y0 ? 0 : 1;
+  }
   const Tr &traits_;
   std::vector<Item<T, Tr>> &items_;
   const std::vector<Tagged<T>> *src_;
+  CountCut<W> counts_;
 };
 
 /// The items of SahRule and InOrderRule: the shapes themselves, taken in
@@ -1956,12 +2053,99 @@ constexpr int kSahBins = 16;
 /// centres fill fewer than 3 bins on both axes (clusters, duplicates), it
 /// falls back to the course's cut into thirds by count on the longer side.
 /// O(n) per level plus O(kSahBins^2) per node: O(n log n) for a balanced
-/// result.
-template <class T, class Tr> class SahRule : public ShapesAsItems<T, Tr> {
+/// result. At widths other than 3 the node is cut by binary SAH cuts: the
+/// largest group that would still split is cut in two where the binned
+/// cost is least, until there are W groups or none would split.
+template <class T, class Tr, int W> class SahRule : public ShapesAsItems<T, Tr> {
 public:
   using State = typename ShapesAsItems<T, Tr>::State;
-  using ShapesAsItems<T, Tr>::ShapesAsItems;
-  void cut(const BuildTask<State> &t, const Box &box, std::size_t cut[4], State *) {
+  SahRule(const Tr &traits, std::vector<Tagged<T>> &shapes, CountCut<W> counts)
+      : ShapesAsItems<T, Tr>(traits, shapes), counts_(counts) {}
+  void cut(const BuildTask<State> &t, int depth, const Box &box, std::size_t cut[W + 1], State *) {
+    if constexpr (W == 3) {
+      cut_in_three(t, box, cut);
+    } else {
+      // At the depth limit's last level the children are leaves of any size.
+      const bool last = counts_.depth_limit > 0 && depth + 1 >= counts_.depth_limit;
+      const std::size_t most = last ? 1 : counts_.split_threshold;
+      std::size_t bounds[W + 1] = {t.begin, t.end};
+      int groups = 1;
+      while (groups < W) {
+        int widest = 0;
+        for (int g = 1; g < groups; ++g)
+          if (bounds[g + 1] - bounds[g] > bounds[widest + 1] - bounds[widest]) widest = g;
+        if (bounds[widest + 1] - bounds[widest] <= most) break;
+        const std::size_t mid = cut_in_two(bounds[widest], bounds[widest + 1]);
+        for (int g = groups; g > widest; --g) bounds[g + 1] = bounds[g];
+        bounds[widest + 1] = mid;
+        ++groups;
+      }
+      for (int g = 0; g <= W; ++g) cut[g] = g <= groups ? bounds[g] : t.end;
+    }
+  }
+
+private:
+  CountCut<W> counts_;
+  /// Cuts [begin, end) (at least 2 shapes) in two non-empty parts by the
+  /// binned SAH over both axes, or at the median of the longer side of the
+  /// centres when no bin boundary separates them; returns where.
+  std::size_t cut_in_two(std::size_t begin, std::size_t end) {
+    std::vector<Tagged<T>> &v = this->v_;
+    Box centres;
+    for (std::size_t i = begin; i < end; ++i) centres.extend(Box::at(this->traits_.center(v[i].shape)));
+    double best_cost = std::numeric_limits<double>::infinity();
+    int best_axis = -1, best_i = 0;
+    for (int axis = 0; axis < 2; ++axis) {
+      const double lo = axis ? centres.y0 : centres.x0;
+      const double extent = (axis ? centres.y1 : centres.x1) - lo;
+      if (!(extent > 0)) continue;
+      Box bin_box[kSahBins];
+      std::size_t bin_count[kSahBins] = {};
+      for (std::size_t i = begin; i < end; ++i) {
+        const int b = bin_of(v[i], axis, lo, extent);
+        bin_box[b].extend(box_of(this->traits_, v[i].shape));
+        ++bin_count[b];
+      }
+      Box suffix[kSahBins + 1];
+      std::size_t suffix_n[kSahBins + 1] = {};
+      for (int b = kSahBins - 1; b >= 0; --b) {
+        suffix[b] = suffix[b + 1];
+        suffix[b].extend(bin_box[b]);
+        suffix_n[b] = suffix_n[b + 1] + bin_count[b];
+      }
+      Box prefix;
+      std::size_t prefix_n = 0;
+      for (int i = 1; i < kSahBins; ++i) {
+        prefix.extend(bin_box[i - 1]);
+        prefix_n += bin_count[i - 1];
+        if (prefix_n == 0 || suffix_n[i] == 0) continue;
+        const double cost = prefix.area() * double(prefix_n) + suffix[i].area() * double(suffix_n[i]);
+        if (cost < best_cost) {
+          best_cost = cost;
+          best_axis = axis;
+          best_i = i;
+        }
+      }
+    }
+    const auto first = v.begin() + long(begin), last = v.begin() + long(end);
+    if (best_axis >= 0) {
+      const double lo = best_axis ? centres.y0 : centres.x0;
+      const double extent = (best_axis ? centres.y1 : centres.x1) - lo;
+      const auto mid =
+          std::partition(first, last, [&](const Tagged<T> &s) { return bin_of(s, best_axis, lo, extent) < best_i; });
+      return std::size_t(mid - v.begin());
+    }
+    const int axis = centres.dx() >= centres.dy() ? 0 : 1;
+    const Tr &traits = this->traits_;
+    const std::size_t mid = begin + (end - begin + 1) / 2;
+    std::nth_element(first, v.begin() + long(mid), last, [axis, &traits](const Tagged<T> &a, const Tagged<T> &b) {
+      return axis ? traits.center(a.shape).y < traits.center(b.shape).y
+                  : traits.center(a.shape).x < traits.center(b.shape).x;
+    });
+    return mid;
+  }
+  /// The ternary cut (W = 3).
+  void cut_in_three(const BuildTask<State> &t, const Box &box, std::size_t cut[4]) {
     std::vector<Tagged<T>> &v = this->v_; // (a dependent base: named through this)
     Box centres;
     for (std::size_t i = t.begin; i < t.end; ++i) centres.extend(Box::at(this->traits_.center(v[i].shape)));
@@ -1993,7 +2177,6 @@ public:
     }
   }
 
-private:
   /// The (axis, first cut, second cut) of least SAH cost over both axes:
   /// groups are bins [0, i), [i, j), [j, kSahBins); axis -1 when no cut
   /// leaves every group non-empty.
@@ -2049,42 +2232,55 @@ private:
   }
 };
 
-/// Thirds in the order given, without sorting: where leaf order must
-/// survive (erase). Shapes that come out of a subtree in leaf order are
+/// Thirds (CountCut's groups at other widths) in the order given, without
+/// sorting: where leaf order must survive (erase). Shapes that come out of a subtree in leaf order are
 /// already spatially grouped.
-template <class T, class Tr> class InOrderRule : public ShapesAsItems<T, Tr> {
+template <class T, class Tr, int W> class InOrderRule : public ShapesAsItems<T, Tr> {
 public:
   using State = typename ShapesAsItems<T, Tr>::State;
-  using ShapesAsItems<T, Tr>::ShapesAsItems;
-  void cut(const BuildTask<State> &t, const Box &, std::size_t cut[4], State *) { cut_in_thirds(t.begin, t.end, cut); }
+  InOrderRule(const Tr &traits, std::vector<Tagged<T>> &shapes, CountCut<W> counts)
+      : ShapesAsItems<T, Tr>(traits, shapes), counts_(counts) {}
+  void cut(const BuildTask<State> &t, int depth, const Box &, std::size_t cut[W + 1], State *) {
+    counts_.cut(t.begin, t.end, depth, cut);
+  }
+
+private:
+  CountCut<W> counts_;
 };
 
-/// Node counts of a tree cut in thirds by count, as CourseRule and
+/// Node counts of a tree cut by count (CountCut), as CourseRule and
 /// InOrderRule cut: its shape depends on the counts alone, so the number
 /// of nodes under every node is known before anything is sorted. At each
 /// depth the splitting sizes differ by at most one, so every level of the
 /// table holds at most a few sizes.
-class Layout {
+template <int W> class Layout {
 public:
   /// The table for n shapes at depth 0 (depth_limit <= 0: none).
   Layout(std::size_t n, int split_threshold, int depth_limit)
       : split_threshold_(std::size_t(split_threshold)), depth_limit_(depth_limit) {
+    const CountCut<W> counts{split_threshold_, depth_limit_};
     levels_.push_back({Entry{n, 0}});
     for (int d = 0; !levels_[std::size_t(d)].empty(); ++d) { // sizes met, top-down
       std::vector<Entry> next;
       for (const Entry &e : levels_[std::size_t(d)])
-        if (splits(e.size, d))
-          for (std::size_t g : thirds(e.size))
+        if (splits(e.size, d)) {
+          std::size_t size[W];
+          counts.sizes(e.size, d, size);
+          for (std::size_t g : size)
             if (g != 0 && std::none_of(next.begin(), next.end(), [&](const Entry &x) { return x.size == g; }))
               next.push_back(Entry{g, 0});
+        }
       levels_.push_back(std::move(next));
     }
     for (std::size_t d = levels_.size(); d-- > 0;) // node counts, bottom-up
       for (Entry &e : levels_[d]) {
         e.nodes = 1;
-        if (splits(e.size, int(d)))
-          for (std::size_t g : thirds(e.size))
+        if (splits(e.size, int(d))) {
+          std::size_t size[W];
+          counts.sizes(e.size, int(d), size);
+          for (std::size_t g : size)
             if (g != 0) e.nodes += nodes(g, int(d) + 1);
+        }
       }
   }
   /// Nodes in the subtree of `size` shapes at `depth` (a size the build meets).
@@ -2109,7 +2305,7 @@ private:
 /// The memory a course build reuses from one build to the next.
 template <class T, class Tr> struct BuildScratch {
   std::vector<Item<T, Tr>> items;
-  std::vector<BuildTask<typename CourseRule<T, Tr>::State>> tasks;
+  std::vector<BuildTask<CourseState>> tasks;
 };
 
 /// `items` (a BuildScratch's), filled with shape(i) for i < n (input
@@ -2137,7 +2333,7 @@ template <class T, class Tr, int W, class Rule> void fill_leaf(Core<T, Tr, W> &c
 /// (gather_leaves); without, nodes come from new_node().
 template <class T, class Tr, int W, class Rule>
 void build_top_down(Core<T, Tr, W> &core, std::vector<BuildTask<typename Rule::State>> &tasks, Rule &rule,
-                    const Layout *layout, int defer_depth = -1,
+                    const typename std::common_type<Layout<W>>::type *layout, int defer_depth = -1,
                     std::vector<BuildTask<typename Rule::State>> *deferred = nullptr) {
   using Task = BuildTask<typename Rule::State>;
   NodeStore<W> &nodes = core.nodes;
@@ -2164,14 +2360,15 @@ void build_top_down(Core<T, Tr, W> &core, std::vector<BuildTask<typename Rule::S
       if (!layout) fill_leaf(core, t.node, rule, t.begin, t.end);
       continue;
     }
-    std::size_t cut[4];
-    typename Rule::State state[3];
-    rule.cut(t, box, cut, state);
-    Task child[3];
+    std::size_t cut[W + 1];
+    typename Rule::State state[W];
+    rule.cut(t, depth, box, cut, state);
+    Task child[W];
     int children = 0;
-    const int groups = (cut[1] > cut[0]) + (cut[2] > cut[1]) + (cut[3] > cut[2]);
+    int groups = 0;
+    for (int g = 0; g < W; ++g) groups += cut[g + 1] > cut[g];
     int grandchildren = t.block + groups; // laid out: where the next child's children go
-    for (int g = 0; g < 3; ++g) {
+    for (int g = 0; g < W; ++g) {
       if (cut[g + 1] == cut[g]) continue;
       int c, block = -1;
       if (layout) {
@@ -2202,24 +2399,24 @@ enum class Cut {
 /// hang under `at` (free_subtree gives them back).
 template <class T, class Tr, int W> void build_at(Core<T, Tr, W> &core, int at, std::vector<Tagged<T>> &shapes, Cut how) {
   if (how == Cut::in_order) {
-    InOrderRule<T, Tr> rule(core.traits, shapes);
-    std::vector<BuildTask<typename InOrderRule<T, Tr>::State>> tasks{
-        {at, 0, shapes.size(), -1, InOrderRule<T, Tr>::root_state()}};
+    InOrderRule<T, Tr, W> rule(core.traits, shapes, core.counts());
+    std::vector<BuildTask<typename InOrderRule<T, Tr, W>::State>> tasks{
+        {at, 0, shapes.size(), -1, InOrderRule<T, Tr, W>::root_state()}};
     build_top_down(core, tasks, rule, nullptr);
   } else if (core.rule == BuildRule::sah) {
-    SahRule<T, Tr> rule(core.traits, shapes);
-    std::vector<BuildTask<typename SahRule<T, Tr>::State>> tasks{{at, 0, shapes.size(), -1, SahRule<T, Tr>::root_state()}};
+    SahRule<T, Tr, W> rule(core.traits, shapes, core.counts());
+    std::vector<BuildTask<typename SahRule<T, Tr, W>::State>> tasks{{at, 0, shapes.size(), -1, SahRule<T, Tr, W>::root_state()}};
     build_top_down(core, tasks, rule, nullptr);
   } else {
     // Threads inserting into disjoint subtrees at once (section 8b) cannot
     // share the tree's scratch memory.
     BuildScratch<T, Tr> own;
     BuildScratch<T, Tr> &scratch = core.nodes.shared() ? own : core.scratch.value;
-    CourseRule<T, Tr> rule(core.traits,
-                           fill_items(core, scratch.items, shapes.size(), [&](std::size_t i) -> const T & { return shapes[i].shape; }),
-                           &shapes);
-    std::vector<BuildTask<typename CourseRule<T, Tr>::State>> &tasks = scratch.tasks;
-    tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule<T, Tr>::root_state()});
+    CourseRule<T, Tr, W> rule(core.traits,
+                              fill_items(core, scratch.items, shapes.size(), [&](std::size_t i) -> const T & { return shapes[i].shape; }),
+                              &shapes, core.counts());
+    std::vector<BuildTask<CourseState>> &tasks = scratch.tasks;
+    tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule<T, Tr, W>::root_state()});
     build_top_down(core, tasks, rule, nullptr);
   }
 }
@@ -2331,20 +2528,20 @@ inline unsigned threads_for(unsigned wanted) {
 /// enough down are independent, so threads can build them at once. Last,
 /// the leaves, in pre-order, take consecutive ranges of the items.
 template <class T, class Tr, int W> void construct_by_course_rule(Core<T, Tr, W> &core, const std::vector<T> &elements) {
-  const Layout layout(core.size, core.split_threshold, core.depth_limit);
+  const Layout<W> layout(core.size, core.split_threshold, core.depth_limit);
   core.nodes.resize(layout.nodes(core.size, 0));
   core.root = 0;
   core.nodes.reset(0, 0, -1, 0);
-  CourseRule<T, Tr> rule(core.traits, fill_items(core, core.scratch.value.items, elements.size(), [&](std::size_t i) -> const T & { return elements[i]; }),
-                     nullptr);
-  using Task = BuildTask<typename CourseRule<T, Tr>::State>;
-  std::vector<Task> tasks{{0, 0, core.size, 1, CourseRule<T, Tr>::root_state()}};
+  CourseRule<T, Tr, W> rule(core.traits, fill_items(core, core.scratch.value.items, elements.size(), [&](std::size_t i) -> const T & { return elements[i]; }),
+                            nullptr, core.counts());
+  using Task = BuildTask<CourseState>;
+  std::vector<Task> tasks{{0, 0, core.size, 1, CourseRule<T, Tr, W>::root_state()}};
   const unsigned threads = threads_for(core.build_threads);
   if (threads <= 1 || core.size < kParallelMin) {
     build_top_down(core, tasks, rule, &layout);
   } else {
     int defer_depth = 1; // enough subtrees to keep every thread busy
-    for (std::size_t subtrees = 3; subtrees < 4 * std::size_t(threads); subtrees *= 3) ++defer_depth;
+    for (std::size_t subtrees = W; subtrees < 4 * std::size_t(threads); subtrees *= W) ++defer_depth;
     std::vector<Task> deferred;
     build_top_down(core, tasks, rule, &layout, defer_depth, &deferred);
     parallel_for(deferred.size(), threads, [&](std::size_t i) {
@@ -3177,7 +3374,9 @@ template <class T, class Tr, int W> bool validate_node(const Core<T, Tr, W> &cor
   } else {
     if (node.num_children < 2 || node.num_children > W)
       return why = "inner node without 2 to " + std::to_string(W) + " children", false;
-    if (node.num_children == 2 && core.split_threshold != 1) return why = "2 children although split_threshold > 1", false;
+    // (the course's thirds give 2 children only to nodes of 2 shapes)
+    if (W == 3 && node.num_children == 2 && core.split_threshold != 1)
+      return why = "2 children although split_threshold > 1", false;
     for (int c = 0; c < node.num_children; ++c) {
       tight.extend(nodes.box(node.child(c)));
       count += nodes.info(node.child(c)).count;
@@ -3856,12 +4055,11 @@ std::vector<std::size_t> insert_disjoint(Core<T, Tr, W> &core, const std::vector
 /// basic for construct (left empty) and erase(value); never throwing for
 /// moves, swap, clear. A Traits adaptor's copy and move must not throw.
 ///
-/// Width: children per inner node. The engine below is written for widths
-/// 2 to 8, but its build rules still cut a node in three, so only the
-/// course's width 3 is accepted for now.
+/// Width: children per inner node, 2 to 8; 3 is the course's tree. At
+/// other widths the build rules fill nodes (CountCut: the course's rule
+/// halves by median, SAH cuts in two where cheapest, until W groups).
 template <class T, class Traits = shape_traits<T>, int Width = detail::kCourseWidth> class BVH {
   static_assert(Width >= detail::kMinWidth && Width <= detail::kMaxWidth, "BVH<T, Traits, Width>: Width is 2 to 8");
-  static_assert(Width == detail::kCourseWidth, "BVH<T, Traits, Width>: widths other than 3 are not built yet");
   static_assert(std::is_nothrow_destructible<T>::value, "BVH<T>: T's destructor must not throw");
   static_assert(std::is_nothrow_copy_constructible<Traits>::value && std::is_nothrow_move_assignable<Traits>::value,
                 "BVH<T, Traits>: the traits' copy and move must not throw (moves and swap rely on it)");
