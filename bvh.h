@@ -2463,6 +2463,54 @@ template <class T, class Tr, int W> int build_beside(Core<T, Tr, W> &core, int a
   return fresh;
 }
 
+/// True when leaf `at`'s split `fresh` (made by build_beside) may instead
+/// give its children to at's parent (splice): at is not the root, fresh's
+/// children are all leaves, and the parent has room for them.
+template <class T, class Tr, int W> bool can_splice(const Core<T, Tr, W> &core, int at, int fresh) {
+  const int parent = core.nodes.info(at).parent;
+  const Node<W> &f = core.nodes.node(fresh);
+  if (parent < 0 || f.is_leaf() || core.nodes.node(parent).num_children - 1 + f.num_children > W) return false;
+  for (int c = 0; c < f.num_children; ++c)
+    if (!core.nodes.node(f.child(c)).is_leaf()) return false;
+  return true;
+}
+
+/// The R-tree's overflow split, for widths other than the course's: leaf
+/// `at` gives way to the leaves of its split `fresh` (can_splice) as
+/// siblings in its parent, in its place and order, so that a leaf that
+/// overflows fills its parent instead of growing a level of nearly empty
+/// nodes. Returns the first of those leaves. Never throws.
+template <class T, class Tr, int W> int splice(Core<T, Tr, W> &core, int at, int fresh) noexcept {
+  NodeStore<W> &nodes = core.nodes;
+  const Info in = nodes.info(at);
+  const int parent = in.parent, first = in.child_index;
+  Node<W> &p = nodes.node(parent);
+  const int k = nodes.node(fresh).num_children, m = p.num_children;
+  const bool changed = nodes.box(fresh) != nodes.box(at);
+  for (int c = m - 1; c > first; --c) { // the later siblings move right
+    const int x = p.child(c);
+    p.set_child(c + k - 1, x);
+    nodes.info(x).child_index = c + k - 1;
+    nodes.set_box(x, nodes.box(x));
+  }
+  for (int j = 0; j < k; ++j) {
+    const int y = nodes.node(fresh).child(j);
+    p.set_child(first + j, y);
+    Info &yi = nodes.info(y);
+    yi.parent = parent;
+    yi.child_index = first + j;
+    yi.depth = in.depth;
+    nodes.set_box(y, nodes.box(y));
+  }
+  p.num_children = m + k - 1;
+  const int leaf = p.child(first);
+  core.free_node(at);
+  core.free_node(fresh); // (an inner node: its children are the parent's now)
+  BVH_INVARIANT(!changed || !nodes.shared(), "a refit above a subtree that threads share");
+  if (changed) core.refit_up(parent);
+  return leaf;
+}
+
 /// The subtree at `at` becomes `fresh` (made by build_beside): linked in,
 /// the old one freed, the boxes above refitted if the box changed (with a
 /// margin, leaves that update() left larger come out fitted again). Never
@@ -2703,8 +2751,12 @@ BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &box
       core.leaves.copy_out(nodes.node(n), shapes);
       shapes.push_back(Tagged<T>{shape, id});
       const int fresh = build_beside(core, n, shapes, Cut::by_rule);
-      replace_by(core, n, fresh);
-      n = fresh;
+      if (W != kCourseWidth && n != top && can_splice(core, n, fresh)) {
+        n = splice(core, n, fresh);
+      } else {
+        replace_by(core, n, fresh);
+        n = fresh;
+      }
     } else {
       core.leaves.push(nodes.node(n), n, shape, id);
     }
@@ -3816,7 +3868,10 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
           n = choose_child(nodes.node(n), box);
         }
         Lane &lane = frontier.lane(n);
-        bool top_lopsided = false;
+        // A subtree that is one leaf and overflows would give its split
+        // to its parent, a top node (splice): the loop's change of the top.
+        bool top_lopsided = W != kCourseWidth && nodes.node(n).is_leaf() && d > 0 &&
+                            !core.is_leaf_size(lane.count + 1, nodes.info(n).depth);
         for (int i = d - 1; i >= 0 && !top_lopsided; --i) {
           const std::size_t count = nodes.info(path[i]).count + 1;
           const std::size_t below = i == d - 1 ? lane.count + 1 : nodes.info(path[i + 1]).count + 1;
