@@ -99,7 +99,7 @@ inline bool model_intersect(const Shape &a, const Shape &b) {
   return model_intersect_with(*a.quad(), b);
 }
 
-template <class T> std::vector<T> contents(const BVH<T> &tree) {
+template <class T, class Tr, int W> std::vector<T> contents(const BVH<T, Tr, W> &tree) {
   return std::vector<T>(tree.begin(), tree.end());
 }
 

@@ -55,7 +55,7 @@ std::vector<unsigned> thread_counts() {
 /// Everything of a tree the loop's tree must agree with: every shape in
 /// iteration order with its handle, the statistics report with the tree,
 /// and the handle the next insert() would get.
-template <class T> std::string fingerprint(BVH<T> tree) {
+template <class T, class Tr, int W> std::string fingerprint(BVH<T, Tr, W> tree) {
   std::ostringstream out;
   for (auto it = tree.begin(); it != tree.end(); ++it) out << it.id().id << " " << key_of(*it) << "\n";
   tree.statistics(out, true);
@@ -67,26 +67,29 @@ template <class T> std::string fingerprint(BVH<T> tree) {
 /// How a case's tree starts.
 enum class Start { empty, constructed, inserted };
 
-template <class T> BVH<T> starting_tree(const std::vector<T> &base, Start how, int split, int depth) {
-  BVH<T> tree(split, depth);
+/// The tree of width W (3: the course's) over T.
+template <class T, int W> using Tree = BVH<T, bvh::shape_traits<T>, W>;
+
+template <class T, int W = 3> Tree<T, W> starting_tree(const std::vector<T> &base, Start how, int split, int depth) {
+  Tree<T, W> tree(split, depth);
   if (how == Start::constructed) tree.construct(base);
   if (how == Start::inserted)
     for (const T &s : base) tree.insert(s);
   // A few holes in the handles, so that insert() reuses free ids.
   if (how != Start::empty && tree.size() > 10) {
-    tree.erase(typename BVH<T>::handle{3});
-    tree.erase(typename BVH<T>::handle{7});
+    tree.erase(typename Tree<T, W>::handle{3});
+    tree.erase(typename Tree<T, W>::handle{7});
   }
   return tree;
 }
 
 /// The loop and insert_disjoint() at every thread count agree on
 /// `candidates` from the starting tree (`base`, `how`).
-template <class T>
+template <class T, int W = 3>
 void check_against_loop(const std::vector<T> &base, Start how, const std::vector<T> &candidates, int split,
                         int depth, const std::string &where) {
   note(where);
-  BVH<T> loop = starting_tree(base, how, split, depth);
+  Tree<T, W> loop = starting_tree<T, W>(base, how, split, depth);
   std::vector<std::size_t> loop_kept;
   for (std::size_t i = 0; i < candidates.size(); ++i)
     if (!loop.collision(candidates[i])) {
@@ -96,7 +99,7 @@ void check_against_loop(const std::vector<T> &base, Start how, const std::vector
   const std::string want = fingerprint(loop);
   for (unsigned threads : thread_counts()) {
     note(where + " threads " + std::to_string(threads));
-    BVH<T> tree = starting_tree(base, how, split, depth);
+    Tree<T, W> tree = starting_tree<T, W>(base, how, split, depth);
     const std::vector<std::size_t> kept = tree.insert_disjoint(candidates, threads);
     CHECK(kept == loop_kept);
     std::string why;
@@ -234,6 +237,30 @@ TEST(disjoint_lanes_are_the_loop) {
     CHECK(fingerprint(tree) == fingerprint(loop));
   }
 }
+
+/// The lanes at widths other than 3: splices below the frontier, routing
+/// stopped where a subtree that is one leaf would splice into a top node.
+template <int W> void lanes_at_width(unsigned seed) {
+  for (int round = 0; round < 3; ++round) {
+    const std::string where =
+        "width " + std::to_string(W) + " BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
+    Maker make(seed + unsigned(round));
+    const int split = 1 + 3 * round; // 1, 4, 7
+    const int depth = round == 2 ? 4 : BVH<Disk>::unlimited;
+    std::vector<Disk> c = make.scene<Disk>(12000, 0.5);
+    std::vector<Disk> sorted = make.scene<Disk>(3000, 0.3);
+    std::sort(sorted.begin(), sorted.end(),
+              [](const Disk &a, const Disk &b) { return a.getCenter().x < b.getCenter().x; });
+    c.insert(c.end(), sorted.begin(), sorted.end());
+    const std::size_t before = lanes_probe::laps();
+    check_against_loop<Disk, W>(make.scene<Disk>(6000, 0.5), round == 1 ? Start::constructed : Start::empty, c,
+                                split, depth, where);
+    CHECK(lanes_probe::laps() > before);
+  }
+}
+TEST(disjoint_lanes_are_the_loop_at_width_2) { lanes_at_width<2>(base_seed() + 540); }
+TEST(disjoint_lanes_are_the_loop_at_width_4) { lanes_at_width<4>(base_seed() + 560); }
+TEST(disjoint_lanes_are_the_loop_at_width_8) { lanes_at_width<8>(base_seed() + 580); }
 
 TEST(disjoint_on_tiny_and_empty_inputs) {
   const unsigned seed = base_seed() + 520;

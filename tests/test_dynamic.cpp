@@ -19,8 +19,8 @@
 
 namespace {
 
-std::string seed_note(unsigned seed, int round, const char *kind) {
-  return std::string(kind) + " BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
+std::string seed_note(unsigned seed, int round, const std::string &kind) {
+  return kind + " BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
 }
 
 template <class T> const char *kind_name();
@@ -57,6 +57,13 @@ template <class T> bool same_shapes(std::vector<T> a, std::vector<T> b) {
   return a == b;
 }
 
+/// The tree of width W (3: the course's) over T.
+template <class T, int W> using Tree = BVH<T, bvh::shape_traits<T>, W>;
+/// The kind and, for other widths than 3, the width: a failure's note.
+template <class T, int W> std::string kind_at() {
+  return std::string(kind_name<T>()) + (W == 3 ? "" : " width " + std::to_string(W));
+}
+
 /// Tree parameters for a round: split thresholds 1..6, depth limits
 /// unlimited, small (leaves grow) and moderate.
 void parameters(std::mt19937 &rng, int &split, int &depth) {
@@ -71,14 +78,14 @@ void parameters(std::mt19937 &rng, int &split, int &depth) {
 /// Random insert / erase(iterator) / erase(value) / collision steps against
 /// a vector model; after every step the tree validates and holds the
 /// model's multiset, and iteration order is kept by erase.
-template <class T> void churn_against_model(unsigned seed) {
+template <class T, int W = 3> void churn_against_model(unsigned seed) {
   for (int round = 0; round < scaled(12); ++round) {
-    note(seed_note(seed, round, kind_name<T>()));
+    note(seed_note(seed, round, kind_at<T, W>()));
     Maker make(seed + unsigned(round), round % 3 == 0 ? 50.0 : 0.0); // a grid: many duplicates
     std::mt19937 &rng = make.rng;
     int split, depth;
     parameters(rng, split, depth);
-    BVH<T> tree(split, depth);
+    Tree<T, W> tree(split, depth);
     std::vector<T> model;
     if (round % 2) { // start from a bulk build
       model = make.template scene<T>(int(rng() % 300), 40);
@@ -128,13 +135,13 @@ template <class T> void churn_against_model(unsigned seed) {
       }
       std::string why;
       if (!tree.validate(&why)) {
-        note(seed_note(seed, round, kind_name<T>()) + " step " + std::to_string(step) + ": " + why);
+        note(seed_note(seed, round, kind_at<T, W>()) + " step " + std::to_string(step) + ": " + why);
         CHECK(false);
         return;
       }
       CHECK_EQ(tree.size(), model.size());
       if (!same_shapes(contents(tree), model)) {
-        note(seed_note(seed, round, kind_name<T>()) + " step " + std::to_string(step) + ": contents differ");
+        note(seed_note(seed, round, kind_at<T, W>()) + " step " + std::to_string(step) + ": contents differ");
         CHECK(false);
         return;
       }
@@ -373,9 +380,9 @@ TEST(erase_by_value_removes_every_duplicate) {
 // ---------------------------------------------------------------------------
 // queries
 
-template <class T> void queries_against_brute_force(unsigned seed) {
+template <class T, int W = 3> void queries_against_brute_force(unsigned seed) {
   for (int round = 0; round < scaled(30); ++round) {
-    note(seed_note(seed, round, kind_name<T>()));
+    note(seed_note(seed, round, kind_at<T, W>()));
     Maker make(seed + unsigned(round), round % 4 == 0 ? 25.0 : 0.0);
     std::mt19937 &rng = make.rng;
     int split, depth;
@@ -383,7 +390,7 @@ template <class T> void queries_against_brute_force(unsigned seed) {
     const int n = round == 0 ? 0 : round == 1 ? 1 : int(rng() % 400);
     std::vector<T> shapes = make.template scene<T>(n, 30);
     if (n > 4) shapes[1] = shapes[0]; // a duplicate
-    BVH<T> tree(split, depth);
+    Tree<T, W> tree(split, depth);
     if (round % 2)
       tree.construct(shapes);
     else
@@ -473,9 +480,9 @@ TEST(distance_and_ray_hand_cases) {
 // ---------------------------------------------------------------------------
 // all pairs
 
-template <class T> void pairs_against_brute_force(unsigned seed) {
+template <class T, int W = 3> void pairs_against_brute_force(unsigned seed) {
   for (int round = 0; round < scaled(30); ++round) {
-    note(seed_note(seed, round, kind_name<T>()));
+    note(seed_note(seed, round, kind_at<T, W>()));
     Maker make(seed + unsigned(round), round % 3 == 0 ? 20.0 : 0.0);
     std::mt19937 &rng = make.rng;
     int split, depth;
@@ -483,7 +490,7 @@ template <class T> void pairs_against_brute_force(unsigned seed) {
     const int n = round < 2 ? round : int(rng() % 500);
     std::vector<T> shapes = make.template scene<T>(n, round % 2 ? 60 : 15);
     if (n > 3) shapes[2] = shapes[1];
-    BVH<T> tree(split, depth);
+    Tree<T, W> tree(split, depth);
     if (round % 2)
       tree.construct(shapes);
     else
@@ -525,26 +532,26 @@ double sah_cost(const std::string &stats) {
   return inner + leaf;
 }
 
-template <class T> void sah_build_against_brute_force(unsigned seed) {
+template <class T, int W = 3> void sah_build_against_brute_force(unsigned seed) {
   double course_total = 0, sah_total = 0;
   for (int round = 0; round < scaled(40); ++round) {
-    note(seed_note(seed, round, kind_name<T>()));
+    note(seed_note(seed, round, kind_at<T, W>()));
     Maker make(seed + unsigned(round), round % 5 == 0 ? 40.0 : 0.0); // a grid: duplicate centres
     std::mt19937 &rng = make.rng;
     int split, depth;
     parameters(rng, split, depth);
     const int n = round < 3 ? round : int(rng() % 700);
     const std::vector<T> shapes = make.template scene<T>(n, 30);
-    BVH<T> sah(split, depth), course(split, depth), grown(split, depth);
-    sah.set_build_rule(BVH<T>::BuildRule::sah);
-    grown.set_build_rule(BVH<T>::BuildRule::sah);
+    Tree<T, W> sah(split, depth), course(split, depth), grown(split, depth);
+    sah.set_build_rule(Tree<T, W>::BuildRule::sah);
+    grown.set_build_rule(Tree<T, W>::BuildRule::sah);
     sah.construct(shapes);
     course.construct(shapes);
     for (const T &s : shapes) grown.insert(s);
     std::string why;
     CHECK(sah.validate(&why));
     CHECK(grown.validate(&why));
-    if (!why.empty()) note(seed_note(seed, round, kind_name<T>()) + " " + why);
+    if (!why.empty()) note(seed_note(seed, round, kind_at<T, W>()) + " " + why);
     CHECK(same_shapes(contents(sah), shapes));
     CHECK(same_shapes(contents(grown), shapes));
     for (int q = 0; q < 30; ++q) {
@@ -570,6 +577,23 @@ TEST(sah_build_valid_and_correct_disks) { sah_build_against_brute_force<Disk>(ba
 TEST(sah_build_valid_and_correct_triangles) { sah_build_against_brute_force<Triangle>(base_seed() + 1300); }
 TEST(sah_build_valid_and_correct_quads) { sah_build_against_brute_force<Quad>(base_seed() + 1400); }
 TEST(sah_build_valid_and_correct_mixed) { sah_build_against_brute_force<Shape>(base_seed() + 1700); }
+
+// ---------------------------------------------------------------------------
+// widths other than the course's 3: the same models (disks and mixed shapes)
+
+TEST(width_2_erase_churn_matches_model) { churn_against_model<Disk, 2>(base_seed() + 2000); }
+TEST(width_4_erase_churn_matches_model) { churn_against_model<Shape, 4>(base_seed() + 2100); }
+TEST(width_8_erase_churn_matches_model) { churn_against_model<Disk, 8>(base_seed() + 2200); }
+TEST(width_8_erase_churn_matches_model_mixed) { churn_against_model<Shape, 8>(base_seed() + 2250); }
+TEST(width_2_queries_match_brute_force) { queries_against_brute_force<Shape, 2>(base_seed() + 2300); }
+TEST(width_4_queries_match_brute_force) { queries_against_brute_force<Disk, 4>(base_seed() + 2400); }
+TEST(width_8_queries_match_brute_force) { queries_against_brute_force<Shape, 8>(base_seed() + 2500); }
+TEST(width_2_pairs_match_brute_force) { pairs_against_brute_force<Disk, 2>(base_seed() + 2600); }
+TEST(width_4_pairs_match_brute_force) { pairs_against_brute_force<Shape, 4>(base_seed() + 2700); }
+TEST(width_8_pairs_match_brute_force) { pairs_against_brute_force<Disk, 8>(base_seed() + 2800); }
+TEST(width_2_sah_build_valid_and_correct) { sah_build_against_brute_force<Shape, 2>(base_seed() + 2900); }
+TEST(width_4_sah_build_valid_and_correct) { sah_build_against_brute_force<Disk, 4>(base_seed() + 3000); }
+TEST(width_8_sah_build_valid_and_correct) { sah_build_against_brute_force<Shape, 8>(base_seed() + 3100); }
 
 } // namespace
 
