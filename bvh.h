@@ -478,9 +478,8 @@ inline std::array<std::size_t, 3> thirds(std::size_t m) {
 /// At other widths, so that nodes come out full: with c the capacity of
 /// the smallest subtree that holds m / W shapes (split_threshold shapes a
 /// leaf, W children a node, within the depth limit), the node gets
-/// ceil(m / c) children, their sizes differing by at most one, larger
-/// first. At the depth limit's last level the children are leaves of any
-/// size: W of them.
+/// ceil(m / c) children (at least 2, at most W), their sizes differing by
+/// at most one, larger first.
 template <int W> struct CountCut {
   std::size_t split_threshold;
   int depth_limit; ///< <= 0: none
@@ -491,14 +490,12 @@ template <int W> struct CountCut {
       const std::array<std::size_t, 3> t = thirds(m);
       for (int g = 0; g < 3; ++g) size[g] = t[std::size_t(g)];
     } else {
-      std::size_t groups = W;
-      if (depth_limit <= 0 || depth + 1 < depth_limit) {
-        // Children may split further: the least capacity c with W c >= m.
-        std::size_t c = split_threshold;
-        for (int level = depth + 1; c < (m + W - 1) / W && (depth_limit <= 0 || level + 1 < depth_limit); ++level)
-          c = c > std::numeric_limits<std::size_t>::max() / W ? std::numeric_limits<std::size_t>::max() : c * W;
-        groups = std::min<std::size_t>(W, (m + c - 1) / c);
-      }
+      // The least capacity c >= m / W of a child's subtree (the child at
+      // `level`, its leaves at most as deep as the limit).
+      std::size_t c = split_threshold;
+      for (int level = depth + 1; c < (m + W - 1) / W && (depth_limit <= 0 || level < depth_limit); ++level)
+        c = c > std::numeric_limits<std::size_t>::max() / W ? std::numeric_limits<std::size_t>::max() : c * W;
+      std::size_t groups = std::min<std::size_t>(W, (m + c - 1) / c);
       groups = std::max<std::size_t>(std::min<std::size_t>(groups, m), m > 1 ? 2 : 1);
       const std::size_t base = m / groups, extra = m % groups;
       for (std::size_t g = 0; g < std::size_t(W); ++g) size[g] = g < groups ? base + (g < extra) : 0;

@@ -47,12 +47,14 @@ const char *const kUsage =
     "usage: bvh.out -i SCENE (-o PICTURE.html | --no_output) [--split_threshold K]\n"
     "               [--depth_limit D] [--incremental [--discard_overlap]] [--visualize]\n"
     "               [--print_tree] [--pairs] [--build course|sah] [--threads N]\n"
+    "               [--width 2|3|4|8]\n"
     "       bvh.out --generate disks|triangles|quads|shapes COUNT -o SCENE [--seed S]\n"
     "               [--size MIN:MAX] [--overlap]\n"
     "       bvh.out --help\n";
 
 const char *const kHelp =
-    "Builds a ternary bounding volume hierarchy over the shapes of SCENE (a\n"
+    "Builds a bounding volume hierarchy (ternary, as the course's, unless --width\n"
+    "says otherwise) over the shapes of SCENE (a\n"
     ".disks, .triangles or .quads file, or a .shapes file whose lines may be any of\n"
     "the three) and draws it to PICTURE.html (SVG).\n"
     "\n"
@@ -72,6 +74,8 @@ const char *const kHelp =
     "                           binned surface area heuristic (also for insert's splits)\n"
     "  --threads N              threads for the bulk build and the sampling (1 to 1024;\n"
     "                           default: all cores); the output is the same for every N\n"
+    "  --width W                children per inner node: 2, 3 (the course's, default), 4\n"
+    "                           or 8; wider trees are shallower and smaller\n"
     "  --pairs                  print 'overlapping pairs: N', the number of pairs of shapes\n"
     "                           in the tree that intersect (after the statistics, if any)\n"
     "  --generate KIND COUNT    write COUNT random shapes of KIND (disks, triangles, quads,\n"
@@ -296,6 +300,7 @@ struct Options {
   bool no_output = false; // --no_output: no picture
   bool sah = false; // --build sah
   unsigned threads = 0; // --threads N (0: all cores)
+  int width = 3;        // --width W
   bool generate = false, overlap = false;
   std::string kind;
   long count = 0;
@@ -303,7 +308,7 @@ struct Options {
   double size_lo = -1, size_hi = -1;
 };
 
-template <class T> int run(const Options &o) {
+template <class T, int W> int run(const Options &o) {
   std::vector<T> shapes;
   std::string error;
   Progress progress;
@@ -315,8 +320,8 @@ template <class T> int run(const Options &o) {
     std::cerr << "bvh.out: " << error << "\n";
     return 1;
   }
-  BVH<T> tree(o.split_threshold, o.depth_limit);
-  if (o.sah) tree.set_build_rule(BVH<T>::BuildRule::sah);
+  BVH<T, bvh::shape_traits<T>, W> tree(o.split_threshold, o.depth_limit);
+  if (o.sah) tree.set_build_rule(decltype(tree)::BuildRule::sah);
   tree.set_build_threads(o.threads);
   if (!o.incremental) {
     progress.stage("building the tree of " + std::to_string(shapes.size()) + " shapes");
@@ -363,6 +368,16 @@ template <class T> int run(const Options &o) {
   return 0;
 }
 
+/// run() at the tree width of --width.
+template <class T> int run_at(const Options &o) {
+  switch (o.width) {
+  case 2: return run<T, 2>(o);
+  case 4: return run<T, 4>(o);
+  case 8: return run<T, 8>(o);
+  default: return run<T, 3>(o);
+  }
+}
+
 bool ends_with(const std::string &s, const std::string &suffix) {
   return s.size() > suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
@@ -391,7 +406,7 @@ std::string option_name(const std::string &arg) {
   static const char *const names[] = {"--input", "--output", "--split_threshold", "--depth_limit",
                                       "--incremental", "--discard_overlap", "--visualize", "--print_tree",
                                       "--generate", "--seed", "--size", "--overlap", "--pairs", "--build",
-                                      "--no_output", "--threads"};
+                                      "--no_output", "--threads", "--width"};
   if (arg == "-i") return "--input";
   if (arg == "-o") return "--output";
   for (const char *name : names)
@@ -478,6 +493,11 @@ Options parse_options(int argc, char **argv) {
       o.pairs = true;
     } else if (name == "--no_output") {
       o.no_output = true;
+    } else if (name == "--width") {
+      const std::string w = value();
+      if (w != "2" && w != "3" && w != "4" && w != "8")
+        throw UsageError{"--width needs 2, 3, 4 or 8, not '" + w + "'"};
+      o.width = w[0] - '0';
     } else if (name == "--threads") {
       o.threads = unsigned(parse_integer(arg, value(), 1, 1024));
     } else if (name == "--build") {
@@ -598,10 +618,10 @@ int bvh_main(int argc, char **argv) {
       if (o.kind == "quads") return generate<Quad>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
       return generate<Shape>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
     }
-    if (ends_with(o.input, ".disks")) return run<Disk>(o);
-    if (ends_with(o.input, ".triangles")) return run<Triangle>(o);
-    if (ends_with(o.input, ".quads")) return run<Quad>(o);
-    return run<Shape>(o);
+    if (ends_with(o.input, ".disks")) return run_at<Disk>(o);
+    if (ends_with(o.input, ".triangles")) return run_at<Triangle>(o);
+    if (ends_with(o.input, ".quads")) return run_at<Quad>(o);
+    return run_at<Shape>(o);
   } catch (const std::bad_alloc &) {
     // A scene too big for this machine's memory.
     std::cerr << "bvh.out: out of memory\n";

@@ -71,8 +71,8 @@ inline void render_end(std::ostream &ostr) {
 /// boxes are drawn and shapes recoloured by leaf (the tree's colours change).
 /// Returns false and sets `*error` when the file cannot be written; the
 /// destination is then left as it was.
-template <class T, class Tr>
-bool write_svg(const std::string &path, BVH<T, Tr> &tree, bool visualize, std::string *error = nullptr) {
+template <class T, class Tr, int W>
+bool write_svg(const std::string &path, BVH<T, Tr, W> &tree, bool visualize, std::string *error = nullptr) {
   const std::string temp = path + ".partial";
   {
     std::ofstream ostr(temp, std::ios::binary | std::ios::trunc);
