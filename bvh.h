@@ -4322,6 +4322,33 @@ public:
     return m;
   }
 
+  /// How full the nodes are: inner nodes and leaves, and their mean
+  /// fill, children over Width and shapes over split_threshold (a leaf at
+  /// the depth limit may hold more: its fill is then above 1).
+  struct fill_factor {
+    std::size_t inner = 0;    ///< inner nodes
+    std::size_t leaves = 0;   ///< leaves
+    double children = 0;      ///< mean children of an inner node / Width
+    double shapes = 0;        ///< mean shapes of a leaf / split_threshold
+  };
+  /// The fill factor of the nodes. O(nodes).
+  fill_factor fill() const {
+    fill_factor f;
+    std::size_t children = 0;
+    detail::for_each_preorder(core_.nodes, core_.root, [&](int n) {
+      const auto &node = core_.nodes.node(n);
+      if (node.is_leaf()) {
+        ++f.leaves;
+      } else {
+        ++f.inner;
+        children += std::size_t(node.num_children);
+      }
+    });
+    if (f.inner) f.children = double(children) / double(f.inner) / Width;
+    if (f.leaves) f.shapes = double(core_.size) / double(f.leaves) / core_.split_threshold;
+    return f;
+  }
+
   /// Chooses the build rule for later builds (course by default: the
   /// course's expected output follows it).
   void set_build_rule(BuildRule rule) noexcept { core_.rule = rule; }

@@ -167,10 +167,10 @@ struct Outcome {
 
 // --- ours ---
 
-template <class T> Outcome discard_ours(const std::vector<T> &c, int depth_limit) {
+template <class T, int W = 3> Outcome discard_ours(const std::vector<T> &c, int depth_limit, int split = 4) {
   Outcome o;
   Timer timer;
-  BVH<T> tree(4, depth_limit);
+  BVH<T, bvh::shape_traits<T>, W> tree(split, depth_limit);
   for (std::uint32_t i = 0; i < c.size(); ++i)
     if (!tree.collision(c[i])) {
       tree.insert(c[i]);
@@ -245,11 +245,12 @@ double available_parallelism() {
 }
 
 /// `threads`: construct()'s build threads (0: its default, hardware concurrency).
-template <class T>
-Outcome bulk_ours(const std::vector<T> &base, const std::vector<T> &probes, int depth_limit, unsigned threads = 0) {
+template <class T, int W = 3>
+Outcome bulk_ours(const std::vector<T> &base, const std::vector<T> &probes, int depth_limit, unsigned threads = 0,
+                  int split = 4) {
   Outcome o;
   Timer timer;
-  BVH<T> tree(4, depth_limit);
+  BVH<T, bvh::shape_traits<T>, W> tree(split, depth_limit);
   tree.set_build_threads(threads);
   tree.construct(base);
   for (std::uint32_t i = 0; i < probes.size(); ++i)
@@ -451,6 +452,10 @@ std::vector<Method> all_methods() {
       {"ours", "ours BVH(4, unlimited)", true, ""},
       {"ours-1t", "ours BVH(4), 1 build thread", true, ""}, // bulk workloads only
       {"ours-d8", "ours BVH(4, depth 8)", true, ""},
+      {"ours-w4", "ours width 4, BVH(4)", true, ""},
+      {"ours-w8", "ours width 8, BVH(4)", true, ""},
+      {"ours-w8k8", "ours width 8, BVH(8)", true, ""},
+      {"ours-w8k16", "ours width 8, BVH(16)", true, ""},
       {"ours-par", "ours insert_disjoint, all", true, ""},      // discard workloads only
       {"ours-par1", "ours insert_disjoint(.., 1)", true, ""},   // discard workloads only
       {"brute", "brute force", true, ""},
@@ -467,6 +472,10 @@ std::vector<Method> all_methods() {
 template <class T> bool run_discard(const std::string &m, const std::vector<T> &c, Outcome &o) {
   if (m == "ours") o = discard_ours(c, 0);
   else if (m == "ours-d8") o = discard_ours(c, 8);
+  else if (m == "ours-w4") o = discard_ours<T, 4>(c, 0);
+  else if (m == "ours-w8") o = discard_ours<T, 8>(c, 0);
+  else if (m == "ours-w8k8") o = discard_ours<T, 8>(c, 0, 8);
+  else if (m == "ours-w8k16") o = discard_ours<T, 8>(c, 0, 16);
   else if (m == "ours-par") o = discard_ours_par(c, 0);
   else if (m == "ours-par1") o = discard_ours_par(c, 1);
   else if (m == "brute") o = discard_brute(c);
@@ -488,6 +497,10 @@ template <class T> bool run_bulk(const std::string &m, const std::vector<T> &bas
   if (m == "ours") o = bulk_ours(base, probes, 0);
   else if (m == "ours-1t") o = bulk_ours(base, probes, 0, 1);
   else if (m == "ours-d8") o = bulk_ours(base, probes, 8);
+  else if (m == "ours-w4") o = bulk_ours<T, 4>(base, probes, 0);
+  else if (m == "ours-w8") o = bulk_ours<T, 8>(base, probes, 0);
+  else if (m == "ours-w8k8") o = bulk_ours<T, 8>(base, probes, 0, 0, 8);
+  else if (m == "ours-w8k16") o = bulk_ours<T, 8>(base, probes, 0, 0, 16);
 #if BENCH_HAVE_BOOST
   else if (m == "boost-quad16") o = bulk_boost<bgi::quadratic<16>>(base, probes);
   else if (m == "boost-rstar16") o = bulk_boost<bgi::rstar<16>>(base, probes);
@@ -794,27 +807,44 @@ void run_workload(const Options &opt, const Workload &w, const std::vector<T> &c
 template <class T> void memory_parts(const std::vector<T> &kept, std::ostream &out) {
   if (kept.empty()) return;
   const double n = double(kept.size());
-  auto line = [&](const char *what, const typename BVH<T>::memory_use &m) {
-    char buf[512];
+  auto line = [&](const std::string &what, const auto &tree) {
+    const auto m = tree.memory();
+    const auto f = tree.fill();
+    char buf[640];
     std::snprintf(buf, sizeof buf,
-                  "    %-22s nodes %5.1f  shapes %5.1f  ids %4.1f  leaf slack %5.1f  pool index %4.1f  handles %4.1f"
-                  "  free ids %4.1f  scratch %4.1f  = %6.1f\n",
-                  what, m.nodes / n, m.shapes / n, m.shape_ids / n, m.leaf_slack / n, m.pool_index / n, m.handles / n,
-                  m.free_ids / n, m.scratch / n, m.total() / n);
+                  "    %-30s nodes %5.1f  shapes %5.1f  ids %4.1f  leaf slack %5.1f  pool index %4.1f  handles %4.1f"
+                  "  free ids %4.1f  scratch %4.1f  = %6.1f  (%.2fx the shapes; fill: children %.2f, leaves %.2f)\n",
+                  what.c_str(), m.nodes / n, m.shapes / n, m.shape_ids / n, m.leaf_slack / n, m.pool_index / n,
+                  m.handles / n, m.free_ids / n, m.scratch / n, m.total() / n, m.total() / (n * sizeof(T)), f.children,
+                  f.shapes);
     out << buf;
+    return m;
   };
-  out << "  bytes per kept shape by part (BVH::memory(); sizeof(T) = " << sizeof(T) << "):\n";
+  out << "  bytes per kept shape by part (BVH::memory(); sizeof(T) = " << sizeof(T)
+      << "), and the fill factor (BVH::fill(): mean children / width, mean shapes / split_threshold):\n";
   BVH<T> tree(4, 0);
   for (const T &s : kept) tree.insert(s);
-  line("the loop's tree", tree.memory());
+  line("the loop's tree", tree);
   (void)tree.contains(typename BVH<T>::handle{0});
-  line("after a handle lookup", tree.memory());
+  line("after a handle lookup", tree);
   BVH<T> built(4, 0);
   built.construct(kept);
-  const typename BVH<T>::memory_use b = built.memory();
-  line("construct()", b);
+  const auto b = line("construct()", built);
   out << "    construct()'s transient build memory (its items, freed when it returns): "
       << fmt("%.1f", b.build_transient / n) << " bytes per shape\n";
+  auto wide = [&](auto width, int split) {
+    constexpr int W = decltype(width)::value;
+    BVH<T, bvh::shape_traits<T>, W> loop(split, 0), bulk(split, 0);
+    for (const T &s : kept) loop.insert(s);
+    bulk.construct(kept);
+    const std::string at = "width " + std::to_string(W) + ", split " + std::to_string(split);
+    line("loop, " + at, loop);
+    line("construct(), " + at, bulk);
+  };
+  wide(std::integral_constant<int, 4>(), 4);
+  wide(std::integral_constant<int, 8>(), 4);
+  wide(std::integral_constant<int, 8>(), 8);
+  wide(std::integral_constant<int, 8>(), 16);
 }
 
 // ---------------------------------------------------------------------------
@@ -1076,7 +1106,7 @@ void usage() {
                "                    (default 5, 3 for the 1M workloads, 1 with --only)\n"
                "  --only WORKLOAD   one workload: W1 W2 W3 tri quad S1000 ... S1000000\n"
                "                    (implies --in-process; no files are written)\n"
-               "  --method NAME     one method (or several: NAME,NAME): ours ours-1t ours-d8 ours-par ours-par1 brute boost-quad16 boost-rstar16 box2d grid\n"
+               "  --method NAME     one method (or several: NAME,NAME): ours ours-1t ours-d8 ours-w4 ours-w8 ours-w8k8 ours-w8k16 ours-par ours-par1 brute boost-quad16 boost-rstar16 box2d grid\n"
                "  --big N           N candidates in W1, W2 and W3 instead of 1M (the 10M scaling point:\n"
                "                    --big 10000000 --only W2 --method ours, then boost-quad16, grid)\n"
                "  --in-process      no fork per run (for valgrind/perf); peak RSS is then cumulative\n"
