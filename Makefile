@@ -13,7 +13,7 @@ JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions lazy_handles
 TESTS := $(UNITS:%=$(BUILD)/test_%)
 # test_bvh once more with collision()'s scalar fallback instead of SSE2.
-SCALAR_TESTS := $(BUILD)/test_bvh_scalar
+SCALAR_TESTS := $(BUILD)/test_bvh_scalar $(BUILD)/test_dynamic_scalar
 SAN_TESTS := $(UNITS:%=$(BUILD)/test_%_san) $(BUILD)/bvh_san.out
 # Portable builds: the tree's suites (test_bvh, test_dynamic) under
 # -std=c++20 (g++: the iterator's C++20 concept, the containers), and every
@@ -43,6 +43,9 @@ $(BUILD)/test_%: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BU
 	$(CXX) $(CXXFLAGS) -I. -Itests $< -o $@
 
 $(BUILD)/test_bvh_scalar: tests/test_bvh.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+	$(CXX) $(CXXFLAGS) -DBVH_NO_SIMD -I. -Itests $< -o $@
+
+$(BUILD)/test_dynamic_scalar: tests/test_dynamic.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) $(CXXFLAGS) -DBVH_NO_SIMD -I. -Itests $< -o $@
 
 $(BUILD)/test_%_san: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)

@@ -202,6 +202,8 @@ unit_tests() {
   run_suite test_exceptions "$BUILD/test_exceptions"
   # collision() without SSE2 (BVH_NO_SIMD): the scalar fallback against the same brute force.
   BVH_TEST_SCALE=0.3 run_suite test_bvh_scalar "$BUILD/test_bvh_scalar"
+  # The same at every width (2, 4 and 8 test four children a pass, or two passes at 8).
+  BVH_TEST_SCALE=0.3 run_suite test_dynamic_scalar "$BUILD/test_dynamic_scalar"
 }
 
 # make check's unit tests: the same suites, built at -O1 into $BUILD/check
