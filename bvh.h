@@ -618,14 +618,14 @@ struct Sharing {
     return f();
   }
   /// The running lane's list `own` (LaneCache) refilled, when empty, with
-  /// up to kChunk items of take() under the lock: the first may throw
-  /// (then nothing changed), the others stop at a throw.
-  template <class Item, class F> void refill(std::vector<Item> &own, F &&take) {
+  /// up to `most` (<= kChunk) items of take() under the lock: the first may
+  /// throw (then nothing changed), the others stop at a throw.
+  template <class Item, class F> void refill(std::vector<Item> &own, F &&take, std::size_t most = LaneCache::kChunk) {
     if (!own.empty()) return;
     std::lock_guard<std::mutex> hold(to->lock);
     own.push_back(take());
     try {
-      while (own.size() < LaneCache::kChunk) own.push_back(take());
+      while (own.size() < most) own.push_back(take());
     } catch (...) {
     }
     to->taken.fetch_add(own.size(), std::memory_order_relaxed);
@@ -804,7 +804,7 @@ public:
     if (!sharing_.to) return allocate_here();
     LaneCache *own = LaneCache::current();
     if (!own) return sharing_.locked(true, [&] { return allocate_here(); });
-    sharing_.refill(own->nodes, [&] { return allocate_here(); });
+    sharing_.refill(own->nodes, [&] { return allocate_here(); }, LaneCache::kChunk / (W > 4 ? 4 : 2));
     const int n = own->nodes.back();
     own->nodes.pop_back();
     return n;
@@ -814,6 +814,17 @@ public:
   void reserve_spare(std::size_t spare) {
     nodes_.reserve(nodes_.size() + spare);
     info_.reserve(info_.size() + spare);
+  }
+  /// Gives back the free list's room beyond one place a node (what
+  /// release() needs); nothing changes if memory runs out.
+  void shrink_spare() noexcept {
+    try {
+      std::vector<int> free;
+      free.reserve(nodes_.size());
+      free.assign(free_.begin(), free_.end());
+      free_.swap(free);
+    } catch (...) {
+    }
   }
   /// Makes allocate() and release() take `shared`'s lock (none: nullptr).
   void share(SharedAlloc *shared) noexcept { sharing_.to = shared; }
@@ -1087,7 +1098,8 @@ public:
     LaneCache *own = LaneCache::current();
     if (!own || cls >= own->slots.size()) return sharing_.locked(true, [&] { return allocate_here(cls); });
     std::vector<std::uint32_t> &list = own->slots[cls];
-    sharing_.refill(list, [&] { return classes_[cls].allocate(); });
+    // (fewer of the larger slots at a time: what a lane keeps is slack)
+    sharing_.refill(list, [&] { return classes_[cls].allocate(); }, LaneCache::kChunk >> std::min<std::uint32_t>(cls, 5));
     const Slot s{list.back(), cls};
     list.pop_back();
     return s;
@@ -1105,6 +1117,10 @@ public:
   }
   /// The number of classes (a LaneCache's lists of slots).
   std::size_t class_count() const { return classes_.size(); }
+  /// Every class's shrink_spare().
+  void shrink_spare() noexcept {
+    for (Class &c : classes_) c.shrink_spare();
+  }
   /// Takes back the slots a lane's cache holds (the lanes have ended).
   void take_back(std::vector<std::vector<std::uint32_t>> &own) noexcept {
     for (std::size_t cls = 0; cls < own.size(); ++cls) {
@@ -1275,6 +1291,24 @@ private:
       const std::size_t blocks = (sizes.size() + spare) / per_block_ + 1;
       blocks_.reserve(blocks);
       id_blocks_.reserve(blocks);
+    }
+    /// Gives back the room reserve_spare() made beyond what is used (the
+    /// free slots keep room for every slot). Nothing changes if memory
+    /// for the smaller copies runs out.
+    void shrink_spare() noexcept {
+      try {
+        std::vector<std::uint32_t> free;
+        free.reserve(sizes.size());
+        free.assign(free_slots.begin(), free_slots.end());
+        std::vector<std::uint32_t> used(sizes.begin(), sizes.end());
+        std::vector<T *> blocks(blocks_.begin(), blocks_.end());
+        std::vector<std::uint32_t *> id_blocks(id_blocks_.begin(), id_blocks_.end());
+        free_slots.swap(free);
+        sizes.swap(used);
+        blocks_.swap(blocks);
+        id_blocks_.swap(id_blocks);
+      } catch (...) {
+      }
     }
     void release(std::uint32_t i) noexcept {
       clear(i);
@@ -1656,6 +1690,7 @@ public:
   void reserve_spare(std::size_t spare, std::size_t largest) { pool_.reserve_spare(spare, largest); }
   void share(SharedAlloc *shared) noexcept { pool_.share(shared); }
   std::size_t class_count() const { return pool_.class_count(); }
+  void shrink_spare() noexcept { pool_.shrink_spare(); }
   void take_back(std::vector<std::vector<std::uint32_t>> &own) noexcept { pool_.take_back(own); }
 
   void swap(LeafStore &o) noexcept {
@@ -3899,8 +3934,10 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
     std::size_t largest = 0;
     for (const Lane &lane : frontier.lanes) largest = std::max(largest, lane.count);
     // Lane caches hold up to two chunks of nodes and of each class's slots.
+    // Leaves hold at most split_threshold shapes, except at a depth limit.
+    const std::size_t largest_leaf = core.depth_limit > 0 ? largest + 1 : std::size_t(core.split_threshold) + 1;
     std::size_t classes = 2; // (those reserve_spare() below makes, at least)
-    while ((std::size_t(1) << (classes - 2)) < largest + 1) ++classes;
+    while ((std::size_t(1) << (classes - 2)) < largest_leaf) ++classes;
     const std::size_t kinds = 1 + std::max(classes, core.leaves.class_count());
     const std::size_t cached = 2 * LaneCache::kChunk * kinds;
     const std::size_t slack = 16 * (end - next) + frontier.lanes.size() * cached + 1024;
@@ -3910,7 +3947,7 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
     bool shareable = true;
     try {
       nodes.reserve_spare(room);
-      core.leaves.reserve_spare(room, largest + 1);
+      core.leaves.reserve_spare(room, largest_leaf);
       for (Lane &lane : frontier.lanes) lane.cache.reserve(core.leaves.class_count());
     } catch (...) {
       shareable = false; // (then the lanes run on this thread alone)
@@ -4057,6 +4094,15 @@ std::vector<std::size_t> insert_disjoint(Core<T, Tr, W> &core, const std::vector
   // The first thread to arrive drives, the others help until it is done
   // (also when it throws). If threads cannot be started, parallel_for runs
   // the driver alone and then the helpers, which find it done.
+  // The lanes reserve room for their worst case in the stores' arrays;
+  // what is left of it goes back at the end, also after a throw.
+  struct Shrink {
+    Core<T, Tr, W> &core;
+    ~Shrink() {
+      core.nodes.shrink_spare();
+      core.leaves.shrink_spare();
+    }
+  } shrink{core};
   Crew crew;
   std::atomic<bool> driving{false};
   parallel_for(threads, threads, [&](std::size_t) {

@@ -261,6 +261,27 @@ template <int W> void lanes_at_width(unsigned seed) {
 TEST(disjoint_lanes_are_the_loop_at_width_2) { lanes_at_width<2>(base_seed() + 540); }
 TEST(disjoint_lanes_are_the_loop_at_width_4) { lanes_at_width<4>(base_seed() + 560); }
 TEST(disjoint_lanes_are_the_loop_at_width_8) { lanes_at_width<8>(base_seed() + 580); }
+/// The room the lanes reserve for their worst case goes back when the call
+/// ends: the tree holds about what the loop's holds.
+TEST(disjoint_gives_back_the_lanes_room) {
+  const unsigned seed = base_seed() + 600;
+  for (int depth : {BVH<Disk>::unlimited, 6}) {
+    note("BVH_SEED=" + std::to_string(seed) + " depth " + std::to_string(depth));
+    Maker make(seed + unsigned(depth));
+    const std::vector<Disk> c = make.scene<Disk>(20000, 0.5);
+    BVH<Disk> loop(4, depth), tree(4, depth);
+    for (const Disk &d : c)
+      if (!loop.collision(d)) loop.insert(d);
+    const std::size_t before = lanes_probe::laps();
+    tree.insert_disjoint(c, 2);
+    CHECK(lanes_probe::laps() > before);
+    const auto got = tree.memory(), want = loop.memory();
+    note("BVH_SEED=" + std::to_string(seed) + " depth " + std::to_string(depth) + ": " +
+         std::to_string(got.total()) + " bytes against the loop's " + std::to_string(want.total()));
+    CHECK(got.pool_index <= 2 * want.pool_index + 4096);
+    CHECK(got.total() <= want.total() * 3 / 2);
+  }
+}
 
 TEST(disjoint_on_tiny_and_empty_inputs) {
   const unsigned seed = base_seed() + 520;
