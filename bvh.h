@@ -671,7 +671,7 @@ constexpr double kCanvasArea = 1000.0 * 1000.0;
 // alone writes a float copy ahead of its box: set_parent_copy).
 
 /// Children per inner node of the course's ternary tree, the default
-/// width (BVH<T, Width>).
+/// width (BVH<T, Traits, Width>).
 constexpr int kCourseWidth = 3;
 /// The widths a tree may have.
 constexpr int kMinWidth = 2, kMaxWidth = 8;
@@ -2265,8 +2265,8 @@ private:
 };
 
 /// Thirds (CountCut's groups at other widths) in the order given, without
-/// sorting: where leaf order must survive (erase). Shapes that come out of a subtree in leaf order are
-/// already spatially grouped.
+/// sorting: where leaf order must survive (erase). Shapes that come out
+/// of a subtree in leaf order are already spatially grouped.
 template <class T, class Tr, int W> class InOrderRule : public ShapesAsItems<T, Tr> {
 public:
   using State = typename ShapesAsItems<T, Tr>::State;
@@ -4125,7 +4125,8 @@ std::vector<std::size_t> insert_disjoint(Core<T, Tr, W> &core, const std::vector
 // 9. BVH<T>: the facade
 // ===========================================================================
 
-/// A ternary bounding volume hierarchy over values of type T: shapes, or
+/// A bounding volume hierarchy (ternary, the course's, unless Width says
+/// otherwise) over values of type T: shapes, or
 /// anything a Traits adaptor can read (ids into the user's own arrays).
 ///
 /// What T must provide: copy construction and assignment, and what Traits
