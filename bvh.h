@@ -1117,6 +1117,8 @@ public:
   }
   /// The number of classes (a LaneCache's lists of slots).
   std::size_t class_count() const { return classes_.size(); }
+  /// The classes reserve_spare(spare, largest) makes, at least.
+  static std::size_t classes_for(std::size_t largest) { return std::size_t(class_for(largest)) + 2; }
   /// Every class's shrink_spare().
   void shrink_spare() noexcept {
     for (Class &c : classes_) c.shrink_spare();
@@ -2123,21 +2125,15 @@ private:
   /// centres when no bin boundary separates them; returns where.
   std::size_t cut_in_two(std::size_t begin, std::size_t end) {
     std::vector<Tagged<T>> &v = this->v_;
-    Box centres;
-    for (std::size_t i = begin; i < end; ++i) centres.extend(Box::at(this->traits_.center(v[i].shape)));
+    const Box centres = centres_of(begin, end);
     double best_cost = std::numeric_limits<double>::infinity();
     int best_axis = -1, best_i = 0;
     for (int axis = 0; axis < 2; ++axis) {
-      const double lo = axis ? centres.y0 : centres.x0;
-      const double extent = (axis ? centres.y1 : centres.x1) - lo;
-      if (!(extent > 0)) continue;
+      double lo, extent;
+      if (!span(centres, axis, lo, extent)) continue;
       Box bin_box[kSahBins];
       std::size_t bin_count[kSahBins] = {};
-      for (std::size_t i = begin; i < end; ++i) {
-        const int b = bin_of(v[i], axis, lo, extent);
-        bin_box[b].extend(box_of(this->traits_, v[i].shape));
-        ++bin_count[b];
-      }
+      fill_bins(begin, end, axis, lo, extent, bin_box, bin_count);
       Box suffix[kSahBins + 1];
       std::size_t suffix_n[kSahBins + 1] = {};
       for (int b = kSahBins - 1; b >= 0; --b) {
@@ -2161,32 +2157,26 @@ private:
     }
     const auto first = v.begin() + long(begin), last = v.begin() + long(end);
     if (best_axis >= 0) {
-      const double lo = best_axis ? centres.y0 : centres.x0;
-      const double extent = (best_axis ? centres.y1 : centres.x1) - lo;
+      double lo, extent;
+      span(centres, best_axis, lo, extent);
       const auto mid =
           std::partition(first, last, [&](const Tagged<T> &s) { return bin_of(s, best_axis, lo, extent) < best_i; });
       return std::size_t(mid - v.begin());
     }
-    const int axis = centres.dx() >= centres.dy() ? 0 : 1;
-    const Tr &traits = this->traits_;
     const std::size_t mid = begin + (end - begin + 1) / 2;
-    std::nth_element(first, v.begin() + long(mid), last, [axis, &traits](const Tagged<T> &a, const Tagged<T> &b) {
-      return axis ? traits.center(a.shape).y < traits.center(b.shape).y
-                  : traits.center(a.shape).x < traits.center(b.shape).x;
-    });
+    std::nth_element(first, v.begin() + long(mid), last, centre_less(centres.dx() >= centres.dy() ? 0 : 1));
     return mid;
   }
   /// The ternary cut (W = 3).
   void cut_in_three(const BuildTask<State> &t, const Box &box, std::size_t cut[4]) {
     std::vector<Tagged<T>> &v = this->v_; // (a dependent base: named through this)
-    Box centres;
-    for (std::size_t i = t.begin; i < t.end; ++i) centres.extend(Box::at(this->traits_.center(v[i].shape)));
+    const Box centres = centres_of(t.begin, t.end);
     int best_axis = -1, best_i = 0, best_j = 0;
-    best_cut(v, t, centres, best_axis, best_i, best_j);
+    best_cut(t, centres, best_axis, best_i, best_j);
     const auto first = v.begin() + long(t.begin), last = v.begin() + long(t.end);
     if (best_axis >= 0) {
-      const double lo = best_axis ? centres.y0 : centres.x0;
-      const double extent = (best_axis ? centres.y1 : centres.x1) - lo;
+      double lo, extent;
+      span(centres, best_axis, lo, extent);
       const auto mid1 =
           std::partition(first, last, [&](const Tagged<T> &s) { return bin_of(s, best_axis, lo, extent) < best_i; });
       const auto mid2 =
@@ -2197,13 +2187,8 @@ private:
       cut[3] = t.end;
     } else {
       // Fallback: thirds by count along the longer side of the box.
-      const int axis = box.dx() >= box.dy() ? 0 : 1;
+      const auto less = centre_less(box.dx() >= box.dy() ? 0 : 1);
       cut_in_thirds(t.begin, t.end, cut);
-      const Tr &traits = this->traits_;
-      auto less = [axis, &traits](const Tagged<T> &a, const Tagged<T> &b) {
-        return axis ? traits.center(a.shape).y < traits.center(b.shape).y
-                    : traits.center(a.shape).x < traits.center(b.shape).x;
-      };
       std::nth_element(first, v.begin() + long(cut[1]), last, less);
       std::nth_element(v.begin() + long(cut[1]), v.begin() + long(cut[2]), last, less);
     }
@@ -2212,20 +2197,14 @@ private:
   /// The (axis, first cut, second cut) of least SAH cost over both axes:
   /// groups are bins [0, i), [i, j), [j, kSahBins); axis -1 when no cut
   /// leaves every group non-empty.
-  void best_cut(const std::vector<Tagged<T>> &v, const BuildTask<State> &t, const Box &centres, int &best_axis,
-                       int &best_i, int &best_j) const {
+  void best_cut(const BuildTask<State> &t, const Box &centres, int &best_axis, int &best_i, int &best_j) const {
     double best_cost = std::numeric_limits<double>::infinity();
     for (int axis = 0; axis < 2; ++axis) {
-      const double lo = axis ? centres.y0 : centres.x0;
-      const double extent = (axis ? centres.y1 : centres.x1) - lo;
-      if (!(extent > 0)) continue;
+      double lo, extent;
+      if (!span(centres, axis, lo, extent)) continue;
       Box bin_box[kSahBins];
       std::size_t bin_count[kSahBins] = {};
-      for (std::size_t i = t.begin; i < t.end; ++i) {
-        const int b = bin_of(v[i], axis, lo, extent);
-        bin_box[b].extend(box_of(this->traits_, v[i].shape));
-        ++bin_count[b];
-      }
+      fill_bins(t.begin, t.end, axis, lo, extent, bin_box, bin_count);
       Box prefix[kSahBins + 1], suffix[kSahBins + 1];
       std::size_t prefix_n[kSahBins + 1] = {}, suffix_n[kSahBins + 1] = {};
       for (int b = 0; b < kSahBins; ++b) {
@@ -2257,6 +2236,36 @@ private:
         }
       }
     }
+  }
+  /// The box of the centres of shapes [begin, end).
+  Box centres_of(std::size_t begin, std::size_t end) const {
+    Box centres;
+    for (std::size_t i = begin; i < end; ++i) centres.extend(Box::at(this->traits_.center(this->v_[i].shape)));
+    return centres;
+  }
+  /// The centres' range on `axis` (its low end and extent); false when it
+  /// is empty (every centre on one line across the axis).
+  static bool span(const Box &centres, int axis, double &lo, double &extent) {
+    lo = axis ? centres.y0 : centres.x0;
+    extent = (axis ? centres.y1 : centres.x1) - lo;
+    return extent > 0;
+  }
+  /// Bins shapes [begin, end) by centre on `axis`: each bin's box and count.
+  void fill_bins(std::size_t begin, std::size_t end, int axis, double lo, double extent, Box bin_box[kSahBins],
+                 std::size_t bin_count[kSahBins]) const {
+    for (std::size_t i = begin; i < end; ++i) {
+      const int b = bin_of(this->v_[i], axis, lo, extent);
+      bin_box[b].extend(box_of(this->traits_, this->v_[i].shape));
+      ++bin_count[b];
+    }
+  }
+  /// The order of shapes by centre on `axis` (the fallback cut's).
+  auto centre_less(int axis) const {
+    const Tr &traits = this->traits_;
+    return [axis, &traits](const Tagged<T> &a, const Tagged<T> &b) {
+      return axis ? traits.center(a.shape).y < traits.center(b.shape).y
+                  : traits.center(a.shape).x < traits.center(b.shape).x;
+    };
   }
   int bin_of(const Tagged<T> &s, int axis, double lo, double extent) const {
     const double c = axis ? this->traits_.center(s.shape).y : this->traits_.center(s.shape).x;
@@ -3936,9 +3945,7 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
     // Lane caches hold up to two chunks of nodes and of each class's slots.
     // Leaves hold at most split_threshold shapes, except at a depth limit.
     const std::size_t largest_leaf = core.depth_limit > 0 ? largest + 1 : std::size_t(core.split_threshold) + 1;
-    std::size_t classes = 2; // (those reserve_spare() below makes, at least)
-    while ((std::size_t(1) << (classes - 2)) < largest_leaf) ++classes;
-    const std::size_t kinds = 1 + std::max(classes, core.leaves.class_count());
+    const std::size_t kinds = 1 + std::max(LeafPool<T>::classes_for(largest_leaf), core.leaves.class_count());
     const std::size_t cached = 2 * LaneCache::kChunk * kinds;
     const std::size_t slack = 16 * (end - next) + frontier.lanes.size() * cached + 1024;
     const std::size_t room = std::size_t(threads) * (insertion_allocations(largest) + cached) + slack;

@@ -193,6 +193,17 @@ TEST(disjoint_one_huge_batch_of_survivors) {
                      "BVH_SEED=" + std::to_string(seed) + " one huge batch");
 }
 
+/// The lanes' candidates: sparse (most kept), then a patch sorted by x
+/// (lopsided subtrees).
+std::vector<Disk> lanes_candidates(Maker &make) {
+  std::vector<Disk> c = make.scene<Disk>(12000, 0.5);
+  std::vector<Disk> sorted = make.scene<Disk>(3000, 0.3);
+  std::sort(sorted.begin(), sorted.end(),
+            [](const Disk &a, const Disk &b) { return a.getCenter().x < b.getCenter().x; });
+  c.insert(c.end(), sorted.begin(), sorted.end());
+  return c;
+}
+
 // Trees large enough for step 4 to insert on every thread at once (the
 // lanes: from 4,096 shapes and 64 kept candidates a batch), at every split
 // threshold, with and without a depth limit (leaves at the limit grow past
@@ -207,12 +218,7 @@ TEST(disjoint_lanes_are_the_loop) {
     const int split = 1 + round % 6;
     const int depth = round % 3 == 2 ? 5 : BVH<Disk>::unlimited;
     const Start how = round % 2 ? Start::constructed : Start::empty;
-    // Sparse (most kept), then a patch sorted by x (lopsided subtrees).
-    std::vector<Disk> c = make.scene<Disk>(12000, 0.5);
-    std::vector<Disk> sorted = make.scene<Disk>(3000, 0.3);
-    std::sort(sorted.begin(), sorted.end(),
-              [](const Disk &a, const Disk &b) { return a.getCenter().x < b.getCenter().x; });
-    c.insert(c.end(), sorted.begin(), sorted.end());
+    const std::vector<Disk> c = lanes_candidates(make);
     const std::size_t before = lanes_probe::laps();
     check_against_loop(make.scene<Disk>(6000, 0.5), how, c, split, depth, where);
     CHECK(lanes_probe::laps() > before);
@@ -247,11 +253,7 @@ template <int W> void lanes_at_width(unsigned seed) {
     Maker make(seed + unsigned(round));
     const int split = 1 + 3 * round; // 1, 4, 7
     const int depth = round == 2 ? 4 : BVH<Disk>::unlimited;
-    std::vector<Disk> c = make.scene<Disk>(12000, 0.5);
-    std::vector<Disk> sorted = make.scene<Disk>(3000, 0.3);
-    std::sort(sorted.begin(), sorted.end(),
-              [](const Disk &a, const Disk &b) { return a.getCenter().x < b.getCenter().x; });
-    c.insert(c.end(), sorted.begin(), sorted.end());
+    const std::vector<Disk> c = lanes_candidates(make);
     const std::size_t before = lanes_probe::laps();
     check_against_loop<Disk, W>(make.scene<Disk>(6000, 0.5), round == 1 ? Start::constructed : Start::empty, c,
                                 split, depth, where);
