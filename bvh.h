@@ -1395,7 +1395,25 @@ private:
     return Slot{classes_[cls].allocate(), cls};
   }
 
-  std::vector<Class> classes_;
+  /// The classes, copied one by one: libc++ 14 (as on this machine) leaks a
+  /// vector's buffer when an element's copy throws inside the vector's copy
+  /// constructor (Class's copy allocates), and copies must not leak.
+  struct Classes : std::vector<Class> {
+    Classes() = default;
+    Classes(const Classes &o) : std::vector<Class>() {
+      this->reserve(o.size());
+      for (const Class &c : o) this->push_back(c);
+    }
+    Classes(Classes &&) noexcept = default;
+    Classes &operator=(const Classes &o) {
+      Classes copy(o);
+      this->swap(copy);
+      return *this;
+    }
+    Classes &operator=(Classes &&) noexcept = default;
+    ~Classes() = default;
+  };
+  Classes classes_;
   Sharing sharing_;
 };
 
@@ -3578,6 +3596,19 @@ template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, st
 // batches (Crew), so a batch never waits for a thread to start or for one
 // the system has not yet woken.
 
+/// The size of tree from which insert_disjoint's step 4 inserts on every
+/// thread (the lanes); a smaller tree is not worth splitting. Tests define
+/// it lower before bvh.h, so that small trees (and their runs under
+/// valgrind and the sanitizers) take the lanes too.
+#ifndef BVH_DISJOINT_LANES_MIN
+#define BVH_DISJOINT_LANES_MIN 4096
+#endif
+/// The number of a batch's survivors from which step 2's sweep runs on
+/// every thread (lowered by the tests, as BVH_DISJOINT_LANES_MIN).
+#ifndef BVH_DISJOINT_SWEEP_MIN
+#define BVH_DISJOINT_SWEEP_MIN 4096
+#endif
+
 /// Step timings of insert_disjoint, for bench/bench.cpp's serial-fraction
 /// figures: compiled in only when BVH_DISJOINT_PROFILE names a function
 /// void(int step, double seconds) declared before bvh.h (step 1 and 2: the
@@ -3702,7 +3733,7 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> surviving_pairs(const Tr &t
                                                                     const std::vector<std::size_t> &survivors,
                                                                     Crew &crew, unsigned threads,
                                                                     DisjointClock &clock) {
-  constexpr std::size_t kCrewSweep = 4096;
+  constexpr std::size_t kCrewSweep = BVH_DISJOINT_SWEEP_MIN;
   std::vector<SweepBox> boxes(survivors.size());
   for (std::size_t r = 0; r < survivors.size(); ++r) {
     float f[4];
@@ -3882,7 +3913,7 @@ template <class T, class Tr, int W>
 template <class T, class Tr, int W>
 void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
                      unsigned threads, Crew &crew, DisjointClock &clock, std::vector<std::size_t> &kept) {
-  constexpr std::size_t kLanesMin = 4096; // a smaller tree or fewer candidates: serially
+  constexpr std::size_t kLanesMin = BVH_DISJOINT_LANES_MIN; // a smaller tree: serially
   NodeStore<W> &nodes = core.nodes;
   int depth = 0; // the frontier's: about 16 subtrees a thread
   for (std::size_t lanes = 1; lanes < 16 * std::size_t(threads); lanes *= std::size_t(W)) ++depth;
@@ -4198,7 +4229,7 @@ public:
   BVH &operator=(const BVH &other) {
     if (this != &other) {
       BVH copy(other);
-      swap(copy);
+      this->swap(copy);
     }
     return *this;
   }

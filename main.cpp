@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <charconv>
 #include <chrono>
@@ -24,6 +25,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -43,7 +45,7 @@
 
 namespace {
 
-const char *const kUsage =
+[[maybe_unused]] const char *const kUsage = // (unused under BVH_NO_MAIN)
     "usage: bvh.out -i SCENE (-o PICTURE.html | --no_output) [--split_threshold K]\n"
     "               [--depth_limit D] [--incremental [--discard_overlap]] [--visualize]\n"
     "               [--print_tree] [--pairs] [--build course|sah] [--threads N]\n"
@@ -52,7 +54,7 @@ const char *const kUsage =
     "               [--size MIN:MAX] [--overlap]\n"
     "       bvh.out --help\n";
 
-const char *const kHelp =
+[[maybe_unused]] const char *const kHelp =
     "Builds a bounding volume hierarchy (ternary, as the course's, unless --width\n"
     "says otherwise) over the shapes of SCENE (a\n"
     ".disks, .triangles or .quads file, or a .shapes file whose lines may be any of\n"
@@ -394,8 +396,20 @@ long parse_integer(const std::string &flag, const std::string &text, long lo, lo
 
 double parse_real(const std::string &flag, const std::string &text) {
   double value = 0;
+#if defined(__cpp_lib_to_chars) && __cpp_lib_to_chars >= 201611L
   const std::from_chars_result r = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (r.ec != std::errc() || r.ptr != text.data() + text.size() || !(value > 0) || value > 500)
+  const bool whole = r.ec == std::errc() && r.ptr == text.data() + text.size();
+#else
+  // No floating-point from_chars (libc++ before 17, as on macOS): strtod,
+  // on text that from_chars would also read from its first character, and
+  // without strtod's hexadecimal form.
+  char *stop = nullptr;
+  const bool starts = !text.empty() && (text[0] == '-' || text[0] == '.' || std::isalnum((unsigned char)text[0])) &&
+                      text.find_first_of("xX") == std::string::npos;
+  if (starts) value = std::strtod(text.c_str(), &stop);
+  const bool whole = starts && stop == text.c_str() + text.size();
+#endif
+  if (!whole || !(value > 0) || value > 500)
     throw UsageError{flag + " needs sizes above 0 and at most 500, not '" + text + "'"};
   return value;
 }
@@ -549,7 +563,7 @@ Options parse_options(int argc, char **argv) {
 /// Checks, before any work, that the input can be opened, that the output
 /// can be created, and that they are not one file (through a link): the
 /// picture would replace the scene. Sets `error` (exit status 2) if not.
-bool check_files(const Options &o, std::string &error) {
+[[maybe_unused]] bool check_files(const Options &o, std::string &error) {
   std::error_code ec;
   if (!o.generate) {
     // fopen succeeds on a directory on Linux; only reading it fails.
@@ -590,7 +604,10 @@ bool check_files(const Options &o, std::string &error) {
 
 } // namespace
 
-/// The whole program, callable from tests and fuzz targets.
+#ifndef BVH_NO_MAIN
+/// The whole program. (-DBVH_NO_MAIN, tests/fuzz_parser.cpp's build, leaves
+/// it out, and with it the trees of every shape kind and width it builds:
+/// the fuzzer needs only the command-line parser below.)
 int bvh_main(int argc, char **argv) {
   for (int i = 1; i < argc; ++i)
     if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h") {
@@ -628,6 +645,8 @@ int bvh_main(int argc, char **argv) {
     return 1;
   }
 }
+
+#endif
 
 /// tests/fuzz_parser.cpp's way in (it links this file, compiled with
 /// -DBVH_NO_MAIN): the command line parsed as bvh_main parses it, touching

@@ -7,16 +7,18 @@
 //   int main(int argc, char **argv) { return run_all_tests(argc, argv); }
 //
 // Each TEST is one case: it passes when none of its CHECKs failed. The run
-// prints `ok NAME` or `FAIL NAME` per case and ends with `N passed, M failed`;
+// prints `ok NAME (T s)` or `FAIL NAME` per case and ends with `N passed, M failed`;
 // the exit status is non-zero when any case failed. `./test_x NAME...` runs
 // only the named cases. A failing CHECK prints file:line and the expression;
 // randomized cases print their seed through `note()`.
 #ifndef BVH_TESTS_CHECK_H
 #define BVH_TESTS_CHECK_H
 
+#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <functional>
+#include <iomanip>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -101,10 +103,14 @@ inline int run_all_tests(int argc, char **argv) {
     }
     check::failures_in_case() = 0;
     check::context().clear();
+    const auto start = std::chrono::steady_clock::now();
     c.fn();
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (check::failures_in_case() == 0) {
       ++passed;
-      std::cout << "ok " << c.name << std::endl;
+      // (the time: to keep make test short, find the slow cases in its logs)
+      std::cout << "ok " << c.name << " (" << std::fixed << std::setprecision(2) << seconds << " s)"
+                << std::defaultfloat << std::endl;
     } else {
       ++failed;
       std::cout << "FAIL " << c.name << " (" << check::failures_in_case() << " failed checks)" << std::endl;

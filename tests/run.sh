@@ -226,18 +226,22 @@ unit_tests_quick() {
   done
 }
 
-# The unit tests and the CLI under AddressSanitizer + UBSan.
+# The unit tests and the CLI under AddressSanitizer + UBSan, built by
+# clang++ with libc++ when both are installed (then also the portable build
+# with libc++: the suites' names end in _libcxx), else by g++.
 sanitizers() {
-  BVH_TEST_SCALE=0.3 run_suite test_bvh_sanitized "$BUILD/test_bvh_san"
-  BVH_TEST_SCALE=0.3 run_suite test_threads_sanitized "$BUILD/test_threads_san"
-  BVH_TEST_SCALE=0.3 run_suite test_intersect_sanitized "$BUILD/test_intersect_san"
-  BVH_TEST_SCALE=0.5 run_suite test_dynamic_sanitized "$BUILD/test_dynamic_san"
-  BVH_TEST_SCALE=0.5 run_suite test_moving_sanitized "$BUILD/test_moving_san"
-  BVH_TEST_SCALE=0.3 run_suite test_lazy_handles_sanitized "$BUILD/test_lazy_handles_san"
-  BVH_TEST_SCALE=0.1 run_suite test_parse_sanitized "$BUILD/test_parse_san"
-  run_suite test_names_sanitized "$BUILD/test_names_san"
-  BVH_TEST_SCALE=0.3 run_suite test_disjoint_sanitized "$BUILD/test_disjoint_san"
-  BVH_TEST_SCALE=0.5 run_suite test_exceptions_sanitized "$BUILD/test_exceptions_san"
+  local s=_sanitized
+  [ "$HAVE_LIBCXX" = yes ] && s=_sanitized_libcxx
+  BVH_TEST_SCALE=0.3 run_suite test_bvh$s "$BUILD/test_bvh_san"
+  BVH_TEST_SCALE=0.3 run_suite test_threads$s "$BUILD/test_threads_san"
+  BVH_TEST_SCALE=0.3 run_suite test_intersect$s "$BUILD/test_intersect_san"
+  BVH_TEST_SCALE=0.5 run_suite test_dynamic$s "$BUILD/test_dynamic_san"
+  BVH_TEST_SCALE=0.5 run_suite test_moving$s "$BUILD/test_moving_san"
+  BVH_TEST_SCALE=0.3 run_suite test_lazy_handles$s "$BUILD/test_lazy_handles_san"
+  BVH_TEST_SCALE=0.1 run_suite test_parse$s "$BUILD/test_parse_san"
+  run_suite test_names$s "$BUILD/test_names_san"
+  BVH_TEST_SCALE=0.3 run_suite test_disjoint$s "$BUILD/test_disjoint_san"
+  BVH_TEST_SCALE=0.5 run_suite test_exceptions$s "$BUILD/test_exceptions_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
     '$BUILD/bvh_san.out' -i inputs/gen_overlap_1000.triangles -o '$OUT/san.html' --depth_limit 8 --incremental \
@@ -246,28 +250,17 @@ sanitizers() {
 }
 
 # Portable builds: test_bvh and test_dynamic under -std=c++20 (g++; test_bvh
-# then also static_asserts std::bidirectional_iterator) and every unit test
-# with clang++ and libc++ (see the Makefile's PORTABLE_FLAGS).
-# Every case at 0.3 of its random rounds: the question here is whether each
-# case builds and passes there; the full rounds run in the default build.
+# then also static_asserts std::bidirectional_iterator). (The libc++ build is
+# the sanitizer layer's.) Every case at 0.3 of its random rounds: the
+# question here is whether each case builds and passes there; the full
+# rounds run in the default build.
 portable() {
   local BVH_TEST_SCALE=0.3
   export BVH_TEST_SCALE
   run_suite test_bvh_cxx20 "$BUILD/test_bvh_cxx20"
   run_suite test_dynamic_cxx20 "$BUILD/test_dynamic_cxx20"
-  if [ "$HAVE_LIBCXX" = yes ]; then
-    run_suite test_bvh_libcxx "$BUILD/test_bvh_libcxx"
-    run_suite test_intersect_libcxx "$BUILD/test_intersect_libcxx"
-    run_suite test_dynamic_libcxx "$BUILD/test_dynamic_libcxx"
-    run_suite test_moving_libcxx "$BUILD/test_moving_libcxx"
-    run_suite test_lazy_handles_libcxx "$BUILD/test_lazy_handles_libcxx"
-    run_suite test_parse_libcxx "$BUILD/test_parse_libcxx"
-    run_suite test_threads_libcxx "$BUILD/test_threads_libcxx"
-    run_suite test_names_libcxx "$BUILD/test_names_libcxx"
-    run_suite test_disjoint_libcxx "$BUILD/test_disjoint_libcxx"
-    run_suite test_exceptions_libcxx "$BUILD/test_exceptions_libcxx"
-  else
-    skip "test_*_libcxx" "clang++ with libc++ is not installed (apt-get install clang libc++-dev libc++abi-dev)"
+  if [ "$HAVE_LIBCXX" != yes ]; then
+    skip "test_*_libcxx" "clang++ with libc++ is not installed (apt-get install clang libc++-dev libc++abi-dev): the sanitizer builds, which are also the libc++ build when it is there, used g++"
   fi
 }
 
@@ -550,14 +543,15 @@ HAVE_LIBCXX=no
 HAVE_FUZZER=no
 if [ "$QUICK" = no ] && have clang++; then
   echo '#include <vector>
-int main() { return int(std::vector<int>(1).size()) - 1; }' | clang++ -std=c++17 -stdlib=libc++ -x c++ - \
-    -o "$BUILD/libcxx-probe" >/dev/null 2>&1 && HAVE_LIBCXX=yes
+int main() { return int(std::vector<int>(1).size()) - 1; }' |
+    clang++ -std=c++17 -stdlib=libc++ -fsanitize=address,undefined -x c++ - -o "$BUILD/libcxx-probe" \
+      >/dev/null 2>&1 && "$BUILD/libcxx-probe" && HAVE_LIBCXX=yes
   echo 'extern "C" int LLVMFuzzerTestOneInput(const char *, unsigned long) { return 0; }' |
     clang++ -x c++ -fsanitize=fuzzer - -o "$BUILD/fuzz-probe" >/dev/null 2>&1 && HAVE_FUZZER=yes
   rm -f "$BUILD/libcxx-probe" "$BUILD/fuzz-probe"
 fi
 if [ "$QUICK" = no ] && ! have clang++; then
-  skip "clang++ builds" "clang++ not installed (apt-get install clang): the libc++ build, the fuzzer and clang++'s course-framework build are skipped" |
+  skip "clang++ builds" "clang++ not installed (apt-get install clang): the libc++ build, the fuzzer and clang++'s course-framework build are skipped; g++ builds the sanitizer tests" |
     tee "$RESULTS/build_notices.txt"
 fi
 targets=() # the longest compiles first, so that -j ends on short ones
@@ -566,11 +560,14 @@ if [ "$QUICK" = yes ]; then
   targets+=(check-build)
 else
   [ "$HAVE_FUZZER" = yes ] && targets+=("$BUILD/fuzz_parser")
-  targets+=(test-build-gcc)
-  [ "$HAVE_LIBCXX" = yes ] && targets+=(test-build-libcxx)
+  targets+=(test-build-san test-build-gcc)
 fi
 # A compile is a recipe line that starts with a compiler (make -n lists those to do).
 compile_re="^($(printf '%s' "$CXX" | sed 's/[+.]/\\&/g')|g\+\+|clang\+\+) "
+# The sanitizer builds: clang++ with libc++ when they work (also the libc++
+# build then), else g++.
+if [ "$HAVE_LIBCXX" = yes ]; then SAN_CXX="clang++ -stdlib=libc++"; else SAN_CXX=$CXX; fi
+export SAN_CXX
 todo=$($MAKE --no-print-directory -n -k "${targets[@]}" 2>/dev/null | grep -cE "$compile_re")
 echo "building: $MAKE -k -j$JOBS ${targets[*]}: $todo compiles to do (log: $LOGS/build.log)"
 build_start=$SECONDS

@@ -33,6 +33,10 @@ inline void lap(int step, double) {
 }
 } // namespace lanes_probe
 #define BVH_DISJOINT_PROFILE lanes_probe::lap
+// Lanes from trees of 512 shapes (bvh.h's default: 4,096), so that the
+// scaled-down runs (valgrind's, the sanitizers') take them on small trees.
+#define BVH_DISJOINT_LANES_MIN 512
+#define BVH_DISJOINT_SWEEP_MIN 512
 
 #include "bvh.h"
 #include "check.h"
@@ -179,16 +183,21 @@ TEST(disjoint_batches_adapt_and_stay_exact) {
                      "BVH_SEED=" + std::to_string(seed) + " sparse, dense, sparse");
 }
 
+/// A size of the lanes' cases: scaled down, but never below an eighth, so
+/// that trees keep above BVH_DISJOINT_LANES_MIN.
+int lanes_scaled(int n) { return std::max(n / 8, scaled(n)); }
+
 // A long run of rejected candidates (they fall on one big disk) grows the
 // batch to its largest; then tens of thousands survive the tree at once and
-// meet each other in one batch: step 2's sweep runs on every thread (from
-// 4,096 survivors), also in the scaled-down runs (ThreadSanitizer's).
+// meet each other in one batch: step 2's sweep runs on every thread (here
+// from 512 survivors), also in the scaled-down runs (ThreadSanitizer's).
 TEST(disjoint_one_huge_batch_of_survivors) {
   const unsigned seed = base_seed() + 470;
   Maker make(seed);
   std::vector<Disk> c;
-  for (int i = 0; i < 60000; ++i) c.push_back(Disk(Point(make.coord(150, 350), make.coord(400, 600)), make.coord(0, 3)));
-  for (int i = 0; i < 30000; ++i) c.push_back(Disk(Point(make.coord(520, 1000), make.coord(0, 1000)), make.coord(0, 1.2)));
+  for (int i = 0; i < lanes_scaled(60000); ++i)
+    c.push_back(Disk(Point(make.coord(150, 350), make.coord(400, 600)), make.coord(0, 3)));
+  for (int i = 0; i < lanes_scaled(30000); ++i) c.push_back(Disk(Point(make.coord(520, 1000), make.coord(0, 1000)), make.coord(0, 1.2)));
   check_against_loop(std::vector<Disk>{Disk(Point(250, 500), 240)}, Start::inserted, c, 4, BVH<Disk>::unlimited,
                      "BVH_SEED=" + std::to_string(seed) + " one huge batch");
 }
@@ -196,8 +205,8 @@ TEST(disjoint_one_huge_batch_of_survivors) {
 /// The lanes' candidates: sparse (most kept), then a patch sorted by x
 /// (lopsided subtrees).
 std::vector<Disk> lanes_candidates(Maker &make) {
-  std::vector<Disk> c = make.scene<Disk>(12000, 0.5);
-  std::vector<Disk> sorted = make.scene<Disk>(3000, 0.3);
+  std::vector<Disk> c = make.scene<Disk>(lanes_scaled(12000), 0.5);
+  std::vector<Disk> sorted = make.scene<Disk>(lanes_scaled(3000), 0.3);
   std::sort(sorted.begin(), sorted.end(),
             [](const Disk &a, const Disk &b) { return a.getCenter().x < b.getCenter().x; });
   c.insert(c.end(), sorted.begin(), sorted.end());
@@ -205,11 +214,12 @@ std::vector<Disk> lanes_candidates(Maker &make) {
 }
 
 // Trees large enough for step 4 to insert on every thread at once (the
-// lanes: from 4,096 shapes and 64 kept candidates a batch), at every split
+// lanes: here from 512 shapes and 64 kept candidates a batch), at every split
 // threshold, with and without a depth limit (leaves at the limit grow past
 // it, through larger slots), by both build rules, from empty and from
-// constructed trees, with rebuilds of lopsided nodes: not scaled down, so
-// that ThreadSanitizer's and valgrind's runs take the lanes too.
+// constructed trees, with rebuilds of lopsided nodes; scaled down no further
+// than lanes_scaled, so that ThreadSanitizer's and valgrind's runs take the
+// lanes too (the probe checks that they ran).
 TEST(disjoint_lanes_are_the_loop) {
   const unsigned seed = base_seed() + 500;
   for (int round = 0; round < 6; ++round) {
@@ -220,12 +230,12 @@ TEST(disjoint_lanes_are_the_loop) {
     const Start how = round % 2 ? Start::constructed : Start::empty;
     const std::vector<Disk> c = lanes_candidates(make);
     const std::size_t before = lanes_probe::laps();
-    check_against_loop(make.scene<Disk>(6000, 0.5), how, c, split, depth, where);
+    check_against_loop(make.scene<Disk>(lanes_scaled(6000), 0.5), how, c, split, depth, where);
     CHECK(lanes_probe::laps() > before);
   }
   // The surface area heuristic's splits and rebuilds, and mixed shapes.
   Maker make(seed + 10);
-  const std::vector<Shape> base = make.scene<Shape>(5000, 0.6), c = make.scene<Shape>(9000, 0.6);
+  const std::vector<Shape> base = make.scene<Shape>(lanes_scaled(5000), 0.6), c = make.scene<Shape>(lanes_scaled(9000), 0.6);
   BVH<Shape> loop(3);
   loop.set_build_rule(BVH<Shape>::BuildRule::sah);
   loop.construct(base);
@@ -255,7 +265,7 @@ template <int W> void lanes_at_width(unsigned seed) {
     const int depth = round == 2 ? 4 : BVH<Disk>::unlimited;
     const std::vector<Disk> c = lanes_candidates(make);
     const std::size_t before = lanes_probe::laps();
-    check_against_loop<Disk, W>(make.scene<Disk>(6000, 0.5), round == 1 ? Start::constructed : Start::empty, c,
+    check_against_loop<Disk, W>(make.scene<Disk>(lanes_scaled(6000), 0.5), round == 1 ? Start::constructed : Start::empty, c,
                                 split, depth, where);
     CHECK(lanes_probe::laps() > before);
   }
@@ -280,7 +290,10 @@ TEST(disjoint_gives_back_the_lanes_room) {
     const auto got = tree.memory(), want = loop.memory();
     note("BVH_SEED=" + std::to_string(seed) + " depth " + std::to_string(depth) + ": " +
          std::to_string(got.total()) + " bytes against the loop's " + std::to_string(want.total()));
-    CHECK(got.pool_index <= 2 * want.pool_index + 4096);
+    // (The lanes' unused cached slots end on the free lists, one set per
+    // round of lanes; from 512 shapes, as here, there are more rounds than
+    // with bvh.h's default, where the bookkeeping stays within 2x + 4096.)
+    CHECK(got.pool_index <= 3 * want.pool_index + 4096);
     CHECK(got.total() <= want.total() * 3 / 2);
   }
 }
