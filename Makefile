@@ -184,7 +184,8 @@ bench-dynamic: $(BUILD)/bench_dynamic
 # ---- make bench-builders (bench/builders.cpp): course bulk build, SAH bulk build and
 # incremental insertion (random and sorted order) compared by SAH cost, height, build
 # time and probe time, on the course's scenes (COURSE_DATA) and on 10k-1M random
-# disks; writes bench/results_builders.txt and the chart bench/builders.svg.
+# disks, at the course's width 3 and then at widths 2, 3, 4 and 8 (node count and fill
+# factor too); writes bench/results_builders.txt and the chart bench/builders.svg.
 $(BUILD)/bench_builders: bench/builders.cpp $(HEADERS) | $(BUILD)
 	$(CXX) $(BENCH_CXXFLAGS) bench/builders.cpp -o $@
 

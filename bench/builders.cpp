@@ -7,9 +7,14 @@
 //   insert sorted insert() one at a time, shapes sorted by centre x
 // and for each: the SAH cost (inner + leaf area as statistics() prints
 // them), the height, the build time, and the time of 100,000 collision()
-// probes (small disks spread over the canvas). All trees BVH(4, unlimited).
-// Writes the table to stdout and a bar chart of the SAH costs, relative to
-// the course bulk build, to the SVG file named by its argument.
+// probes (small disks spread over the canvas). The first table is the
+// course's tree, BVH(4, unlimited) at width 3; the second builds the same
+// trees at widths 2, 3, 4 and 8 (split_threshold 4, and 16 at width 8).
+// The course's SAH cost charges one unit per inner node a probe enters,
+// whatever its width, so it compares builders at one width; across widths
+// compare the probe time. Writes the tables to stdout and a bar chart of
+// the first table's SAH costs, relative to the course bulk build, to the
+// SVG file named by its argument.
 #include "../bvh.h"
 #include "../scene.h"
 #include "../shapes.h"
@@ -36,9 +41,14 @@ struct Row {
   std::string scene, builder;
   double sah, build_s, probe_s;
   int height;
+  int width, split;
+  std::size_t nodes;
+  double children_fill, leaf_fill;
 };
 
-template <class T> std::vector<Row> evaluate(const std::string &scene, const std::vector<T> &shapes) {
+template <class T, int W = 3>
+std::vector<Row> evaluate(const std::string &scene, const std::vector<T> &shapes, int split = 4) {
+  using Tree = BVH<T, bvh::shape_traits<T>, W>;
   std::vector<Row> rows;
   std::vector<T> shuffled = shapes, sorted = shapes;
   std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937(7));
@@ -53,11 +63,11 @@ template <class T> std::vector<Row> evaluate(const std::string &scene, const std
   }
   const char *names[] = {"course bulk", "SAH bulk", "insert random", "insert sorted"};
   for (int b = 0; b < 4; ++b) {
-    BVH<T> tree(4, BVH<T>::unlimited);
+    Tree tree(split, Tree::unlimited);
     const double start = now();
     if (b == 0) tree.construct(shapes);
     if (b == 1) {
-      tree.set_build_rule(BVH<T>::BuildRule::sah);
+      tree.set_build_rule(Tree::BuildRule::sah);
       tree.construct(shapes);
     }
     if (b == 2)
@@ -85,7 +95,9 @@ template <class T> std::vector<Row> evaluate(const std::string &scene, const std
     const double probed = now() - probe_start;
     std::ostringstream stats;
     tree.statistics(stats, false);
-    rows.push_back({scene, names[b], sah_cost(stats.str()), built, probed, tree.height()});
+    const auto fill = tree.fill();
+    rows.push_back({scene, names[b], sah_cost(stats.str()), built, probed, tree.height(), W, split,
+                    fill.inner + fill.leaves, fill.children, fill.shapes});
     (void)hits;
   }
   return rows;
@@ -104,7 +116,20 @@ std::vector<Disk> random_disks(std::size_t n, std::uint64_t seed) {
   return v;
 }
 
-template <class T> void course_scene(const std::string &dir, const std::string &name, std::vector<Row> &rows) {
+/// The same scene at every width the command line offers: widths 2, 3, 4
+/// and 8 at split_threshold 4, and width 8 at 16 (the fastest in make
+/// bench-widths).
+template <class T> void every_width(const std::string &scene, const std::vector<T> &shapes, std::vector<Row> &rows) {
+  const std::vector<Row> parts[] = {evaluate<T, 2>(scene, shapes), evaluate<T, 3>(scene, shapes),
+                                    evaluate<T, 4>(scene, shapes), evaluate<T, 8>(scene, shapes),
+                                    evaluate<T, 8>(scene, shapes, 16)};
+  // Grouped by builder, so that each builder's widths stand together.
+  for (std::size_t b = 0; b < parts[0].size(); ++b)
+    for (const std::vector<Row> &part : parts) rows.push_back(part[b]);
+}
+
+template <class T>
+void course_scene(const std::string &dir, const std::string &name, std::vector<Row> &rows, std::vector<Row> &wide) {
   std::vector<T> shapes;
   std::string error;
   if (!bvh_scene::load_scene(dir + "/" + name, shapes, error)) {
@@ -112,6 +137,7 @@ template <class T> void course_scene(const std::string &dir, const std::string &
     return;
   }
   for (const Row &r : evaluate(name, shapes)) rows.push_back(r);
+  every_width(name, shapes, wide);
 }
 
 void chart(const std::vector<Row> &rows, const std::string &path) {
@@ -154,14 +180,17 @@ int main(int argc, char **argv) {
   const std::string course = argc > 1 ? argv[1] : "../shared/course";
   const std::string svg = argc > 2 ? argv[2] : "bench/builders.svg";
   const bool quick = argc > 3 && std::string(argv[3]) == "--quick";
-  std::vector<Row> rows;
-  course_scene<Disk>(course, "5000.disks", rows);
-  course_scene<Triangle>(course, "5000.triangles", rows);
-  course_scene<Quad>(course, "5000.quads", rows);
-  course_scene<Triangle>(course, "overlap_1000.triangles", rows);
+  std::vector<Row> rows, wide;
+  course_scene<Disk>(course, "5000.disks", rows, wide);
+  course_scene<Triangle>(course, "5000.triangles", rows, wide);
+  course_scene<Quad>(course, "5000.quads", rows, wide);
+  course_scene<Triangle>(course, "overlap_1000.triangles", rows, wide);
   for (std::size_t n : {std::size_t(10000), std::size_t(100000), std::size_t(1000000)}) {
     if (quick && n > 10000) break;
-    for (const Row &r : evaluate(std::to_string(n / 1000) + "k disks", random_disks(n, n))) rows.push_back(r);
+    const std::string scene = std::to_string(n / 1000) + "k disks";
+    const std::vector<Disk> disks = random_disks(n, n);
+    for (const Row &r : evaluate(scene, disks)) rows.push_back(r);
+    every_width(scene, disks, wide);
   }
   std::printf("%-24s %-14s %10s %8s %7s %10s %12s\n", "scene", "builder", "SAH", "/ course", "height", "build s",
               "100k probes s");
@@ -170,6 +199,19 @@ int main(int argc, char **argv) {
     const Row &r = rows[i];
     std::printf("%-24s %-14s %10.3f %8.3f %7d %10.4f %12.4f\n", i % 4 ? "" : r.scene.c_str(), r.builder.c_str(),
                 r.sah, r.sah / rows[i - i % 4].sah, r.height, r.build_s, r.probe_s);
+  }
+  std::printf("\nWidths: the same builders at widths 2, 3, 4 and 8 (split_threshold 4; and width 8 at 16).\n"
+              "SAH is the course's cost, comparable within a width only; fill is the mean children of an inner\n"
+              "node over the width, and the mean shapes of a leaf over split_threshold.\n");
+  std::printf("%-24s %-14s %5s %5s %10s %9s %6s %6s %7s %10s %12s\n", "scene", "builder", "width", "split", "SAH",
+              "nodes", "fill", "leaf", "height", "build s", "100k probes s");
+  std::printf("%s\n", std::string(119, '-').c_str());
+  for (std::size_t i = 0; i < wide.size(); ++i) {
+    const Row &r = wide[i];
+    const bool first = i == 0 || wide[i - 1].scene != r.scene;
+    std::printf("%-24s %-14s %5d %5d %10.3f %9zu %6.2f %6.2f %7d %10.4f %12.4f\n", first ? r.scene.c_str() : "",
+                r.builder.c_str(), r.width, r.split, r.sah, r.nodes, r.children_fill, r.leaf_fill, r.height,
+                r.build_s, r.probe_s);
   }
   chart(rows, svg);
   std::printf("(chart: %s)\n", svg.c_str());
