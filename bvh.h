@@ -630,12 +630,14 @@ struct Sharing {
     }
     to->taken.fetch_add(own.size(), std::memory_order_relaxed);
   }
-  /// `item` onto the running lane's list `own`; a full list first gives
-  /// half of its items back through give(item) under the lock.
-  template <class Item, class F> void give_back(std::vector<Item> &own, Item item, F &&give) noexcept {
-    if (own.size() == own.capacity()) {
+  /// `item` onto the running lane's list `own`; a list of 2 * `keep` (<=
+  /// kChunk) items first gives all but `keep` back through give(item)
+  /// under the lock.
+  template <class Item, class F>
+  void give_back(std::vector<Item> &own, Item item, F &&give, std::size_t keep = LaneCache::kChunk) noexcept {
+    if (own.size() >= 2 * keep) {
       std::lock_guard<std::mutex> hold(to->lock);
-      while (own.size() > LaneCache::kChunk) {
+      while (own.size() > keep) {
         give(own.back());
         own.pop_back();
       }
@@ -679,7 +681,7 @@ constexpr int kMinWidth = 2, kMaxWidth = 8;
 constexpr unsigned child_bits(int w) { return (1u << w) - 1; }
 
 /// Where a leaf's shapes are: a slot of the leaf store (its class, i.e. a
-/// capacity of 1 << cls, and its index in that class) and how many shapes
+/// capacity of LeafPool's capacity_of(cls), and its index in that class) and how many shapes
 /// it holds. A leaf that owns no slot has cls == kNoSlot.
 struct LeafSlot {
   static constexpr std::uint32_t kNoSlot = ~std::uint32_t(0);
@@ -729,7 +731,7 @@ public:
   std::int32_t parent = -1;     ///< -1 for the root
   std::int32_t child_index = 0; ///< its index among the parent's children
   std::int32_t depth = 0;       ///< the root's is 0
-  std::size_t count = 0;        ///< shapes in the subtree
+  std::uint32_t count = 0;      ///< shapes in the subtree (ids are 32-bit: so is a count)
 
 private:
   template <int> friend class NodeStore;
@@ -859,9 +861,13 @@ public:
     else
       sharing_.locked(false, [&] { free_.push_back(n); });
   }
-  /// Takes back the nodes a lane's cache holds (the lanes have ended).
+  /// Takes back the nodes a lane's cache holds, when its lane ends (under
+  /// the lock while shared).
   void take_back(std::vector<int> &own) noexcept {
-    for (int n : own) free_.push_back(n); // (never allocates: allocate() made room)
+    if (own.empty()) return;
+    sharing_.locked(false, [&] {
+      for (int n : own) free_.push_back(n); // (never allocates: allocate() made room)
+    });
     own.clear();
   }
 
@@ -1076,8 +1082,11 @@ template <int W, class F> void for_each_postorder(const NodeStore<W> &nodes, int
 // ===========================================================================
 
 /// The leaves' shapes: each leaf owns one slot, a contiguous run of shapes.
-/// Slot capacities are powers of two, with one pool per capacity (a
-/// "class"); a pool stores its slots in fixed blocks, so growing never moves
+/// Slot capacities are 1, 2, 4, ..., 8, then 8 steps from each power of
+/// two to the next (capacity_of()), so that a slot of more than 4 holds at
+/// most one eighth more places than shapes, with one pool per capacity (a "class"):
+/// leaves grow one shape at a time, and with powers of two alone a leaf of
+/// 17 shapes would take 32 places. A pool stores its slots in fixed blocks, so growing never moves
 /// what is stored and there is no allocation per leaf; a bulk build's
 /// leaves of one class lie side by side in leaf order. Only a slot's first
 /// size() elements are constructed, so T needs no default constructor.
@@ -1085,7 +1094,7 @@ template <int W, class F> void for_each_postorder(const NodeStore<W> &nodes, int
 /// moved with it. Slots given back are reused first. Copies are deep.
 template <class T> class LeafPool {
 public:
-  /// A slot: its class (capacity 1 << cls) and its index in that class.
+  /// A slot: its class (capacity capacity_of(cls)) and its index in that class.
   struct Slot {
     std::uint32_t index = 0;
     std::uint32_t cls = 0;
@@ -1098,8 +1107,7 @@ public:
     LaneCache *own = LaneCache::current();
     if (!own || cls >= own->slots.size()) return sharing_.locked(true, [&] { return allocate_here(cls); });
     std::vector<std::uint32_t> &list = own->slots[cls];
-    // (fewer of the larger slots at a time: what a lane keeps is slack)
-    sharing_.refill(list, [&] { return classes_[cls].allocate(); }, LaneCache::kChunk >> std::min<std::uint32_t>(cls, 5));
+    sharing_.refill(list, [&] { return classes_[cls].allocate(); }, chunk_of(cls));
     const Slot s{list.back(), cls};
     list.pop_back();
     return s;
@@ -1110,7 +1118,8 @@ public:
     if (own && s.cls < own->slots.size()) {
       Class &c = classes_[s.cls];
       c.clear(s.index);
-      sharing_.give_back(own->slots[s.cls], s.index, [&](std::uint32_t i) { c.free_slots.push_back(i); });
+      sharing_.give_back(own->slots[s.cls], s.index, [&](std::uint32_t i) { c.free_slots.push_back(i); },
+                         chunk_of(s.cls));
     } else {
       sharing_.locked(false, [&] { classes_[s.cls].release(s.index); });
     }
@@ -1123,12 +1132,17 @@ public:
   void shrink_spare() noexcept {
     for (Class &c : classes_) c.shrink_spare();
   }
-  /// Takes back the slots a lane's cache holds (the lanes have ended).
+  /// Takes back the slots a lane's cache holds, when its lane ends (under
+  /// the lock while shared): a lane that has ended keeps nothing, since a
+  /// cached slot of every class a leaf grew through, in every lane, is
+  /// slack.
   void take_back(std::vector<std::vector<std::uint32_t>> &own) noexcept {
-    for (std::size_t cls = 0; cls < own.size(); ++cls) {
-      for (std::uint32_t i : own[cls]) classes_[cls].free_slots.push_back(i); // (never allocates)
-      own[cls].clear();
-    }
+    sharing_.locked(false, [&] {
+      for (std::size_t cls = 0; cls < own.size(); ++cls) {
+        for (std::uint32_t i : own[cls]) classes_[cls].free_slots.push_back(i); // (never allocates)
+        own[cls].clear();
+      }
+    });
   }
   /// Room for `spare` more slots in every class up to the one of
   /// `largest` shapes (made now if missing), so that allocating them never
@@ -1165,19 +1179,16 @@ public:
   /// The number of shapes in the slot.
   std::size_t size(Slot s) const { return classes_[s.cls].sizes[s.index]; }
 
-  /// Appends a shape with its id; a full slot first moves to one twice as
-  /// large (`s` then names the new slot). Strong: if it throws, the slot
+  /// Appends a shape with its id; a full slot first moves to one of the
+  /// next class (`s` then names the new slot). Strong: if it throws, the slot
   /// and its shapes are as they were (they move to the larger slot by
   /// std::move_if_noexcept, and the old slot goes only once all are there).
   template <class V> void push_back(Slot &s, V &&shape, std::uint32_t id) {
-    if (size(s) == (std::size_t(1) << s.cls)) {
+    if (size(s) == capacity_of(s.cls)) {
       T extra(std::forward<V>(shape)); // (first: `shape` may be one of the slot's)
-      const Slot bigger = allocate(std::size_t(2) << s.cls);
+      const Slot bigger = allocate(capacity_of(s.cls) + 1);
       try {
-        T *from = data(s);
-        const std::uint32_t *from_ids = ids(s);
-        for (std::size_t i = 0, n = size(s); i < n; ++i)
-          classes_[bigger.cls].construct(bigger.index, std::move_if_noexcept(from[i]), from_ids[i]);
+        classes_[bigger.cls].append_all(bigger.index, data(s), ids(s), size(s));
         classes_[bigger.cls].construct(bigger.index, std::move_if_noexcept(extra), id);
       } catch (...) {
         release(bigger);
@@ -1212,7 +1223,7 @@ public:
   /// A new slot of s's class holding copies of s's shapes but shape i, in
   /// order, with their ids; `s` is untouched. Strong.
   Slot copy_without(Slot s, std::size_t i) {
-    const Slot fresh = allocate(std::size_t(1) << s.cls);
+    const Slot fresh = allocate(capacity_of(s.cls));
     try {
       const T *d = data(s);
       const std::uint32_t *id = ids(s);
@@ -1231,13 +1242,13 @@ private:
   /// The slots of one capacity.
   class Class {
   public:
-    explicit Class(std::uint32_t cls) : cls_(cls), capacity_(std::size_t(1) << cls) {
+    explicit Class(std::uint32_t cls) : capacity_(capacity_of(cls)) {
       // Slots per block: a power of two, so that finding a slot shifts.
       while ((std::size_t(2) << block_shift_) * capacity_ * sizeof(T) <= kBlockBytes) ++block_shift_;
       per_block_ = std::size_t(1) << block_shift_;
     }
     Class(const Class &o)
-        : cls_(o.cls_), capacity_(o.capacity_), block_shift_(o.block_shift_), per_block_(o.per_block_) {
+        : capacity_(o.capacity_), block_shift_(o.block_shift_), per_block_(o.per_block_) {
       free_slots.reserve(o.sizes.size()); // (room for every slot: release() never allocates)
       free_slots = o.free_slots;
       sizes.reserve(o.sizes.size());
@@ -1253,7 +1264,7 @@ private:
       }
     }
     Class(Class &&o) noexcept
-        : cls_(o.cls_), capacity_(o.capacity_), block_shift_(o.block_shift_), per_block_(o.per_block_),
+        : capacity_(o.capacity_), block_shift_(o.block_shift_), per_block_(o.per_block_),
           sizes(std::move(o.sizes)), free_slots(std::move(o.free_slots)), blocks_(std::move(o.blocks_)),
           id_blocks_(std::move(o.id_blocks_)) {
       o.sizes.clear();
@@ -1262,7 +1273,6 @@ private:
       o.id_blocks_.clear();
     }
     Class &operator=(Class o) noexcept { // copy or move, then swap
-      std::swap(cls_, o.cls_);
       std::swap(capacity_, o.capacity_);
       std::swap(block_shift_, o.block_shift_);
       std::swap(per_block_, o.per_block_);
@@ -1327,15 +1337,27 @@ private:
       ids(i)[sizes[i]] = id;
       ++sizes[i];
     }
+    /// Moves (or copies) n shapes and their ids to the end of slot i;
+    /// strong, as construct() one by one.
+    void append_all(std::uint32_t i, T *from, const std::uint32_t *from_ids, std::size_t n) {
+      if constexpr (std::is_trivially_copyable<T>::value) {
+        // (one copy of each array, not a slot lookup per shape)
+        std::memcpy(static_cast<void *>(data(i) + sizes[i]), from, n * sizeof(T));
+        std::memcpy(ids(i) + sizes[i], from_ids, n * sizeof(std::uint32_t));
+        sizes[i] += std::uint32_t(n);
+      } else {
+        for (std::size_t k = 0; k < n; ++k) construct(i, std::move_if_noexcept(from[k]), from_ids[k]);
+      }
+    }
     std::uint32_t *ids(std::uint32_t i) {
-      return id_blocks_[i >> block_shift_] + (std::size_t(i & (per_block_ - 1)) << cls_);
+      return id_blocks_[i >> block_shift_] + std::size_t(i & (per_block_ - 1)) * capacity_;
     }
     const std::uint32_t *ids(std::uint32_t i) const {
-      return id_blocks_[i >> block_shift_] + (std::size_t(i & (per_block_ - 1)) << cls_);
+      return id_blocks_[i >> block_shift_] + std::size_t(i & (per_block_ - 1)) * capacity_;
     }
-    T *data(std::uint32_t i) { return blocks_[i >> block_shift_] + (std::size_t(i & (per_block_ - 1)) << cls_); }
+    T *data(std::uint32_t i) { return blocks_[i >> block_shift_] + std::size_t(i & (per_block_ - 1)) * capacity_; }
     const T *data(std::uint32_t i) const {
-      return blocks_[i >> block_shift_] + (std::size_t(i & (per_block_ - 1)) << cls_);
+      return blocks_[i >> block_shift_] + std::size_t(i & (per_block_ - 1)) * capacity_;
     }
     void add_bytes(Bytes &b) const {
       std::size_t stored = 0;
@@ -1349,7 +1371,6 @@ private:
     }
 
   private:
-    std::uint32_t cls_;
     std::size_t capacity_;
     std::uint32_t block_shift_ = 0;
     std::size_t per_block_;
@@ -1363,8 +1384,8 @@ private:
     std::vector<std::uint32_t *> id_blocks_; // parallel to blocks_
     void add_block() {
       const std::size_t n = per_block_ * capacity_;
-      blocks_.reserve(blocks_.size() + 1);
-      id_blocks_.reserve(id_blocks_.size() + 1);
+      reserve_for(blocks_, blocks_.size() + 1);
+      reserve_for(id_blocks_, id_blocks_.size() + 1);
       T *b = std::allocator<T>().allocate(n);
       try {
         id_blocks_.push_back(std::allocator<std::uint32_t>().allocate(n));
@@ -1385,11 +1406,43 @@ private:
     }
   };
 
-  static std::uint32_t class_for(std::size_t capacity) {
-    std::uint32_t cls = 0;
-    while ((std::size_t(1) << cls) < capacity) ++cls;
-    return cls;
+public:
+  /// The slots of class cls a lane takes at a time, and keeps when it
+  /// gives slots back: fewer of the larger, since what a lane keeps is
+  /// slack.
+  static std::size_t chunk_of(std::uint32_t cls) {
+    return LaneCache::kChunk >> std::min<std::size_t>(log2_floor(capacity_of(cls)), 5);
   }
+  /// The highest bit of n >= 1.
+  static std::size_t log2_floor(std::size_t n) {
+    std::size_t b = 0;
+    while (n >> (b + 1)) ++b;
+    return b;
+  }
+  /// Steps a class's capacity takes from one power of two to the next
+  /// (kSteps = 2^kStepBits).
+  static constexpr std::uint32_t kStepBits = 3;
+  static constexpr std::size_t kSteps = std::size_t(1) << kStepBits;
+  /// The capacity of class cls: 1, 2, 4, then every count up to kSteps,
+  /// then kSteps steps from each power of two to the next (at 8 steps: 1,
+  /// 2, 4, 5, ..., 8, 9, ..., 16, 18, ..., 32, 36, ...). There is no slot
+  /// of 3: the course's leaves, of at most 4, then move as often as they
+  /// did in powers of two.
+  static constexpr std::size_t capacity_of(std::uint32_t cls) {
+    return cls < 2 ? cls + 1 : cls + 1 < kSteps ? cls + 2 : (kSteps + (cls + 2) % kSteps) << ((cls + 2) / kSteps - 1);
+  }
+  /// The smallest class holding `capacity` shapes.
+  static std::uint32_t class_for(std::size_t capacity) {
+    if (capacity <= 2) return capacity == 2 ? 1 : 0;
+    if (capacity <= kSteps) return capacity == 3 ? 2 : std::uint32_t(capacity - 2);
+    const std::size_t x = capacity - 1;
+    std::uint32_t shift = std::uint32_t(log2_floor(x)) - kStepBits;
+    std::size_t steps = (x >> shift) + 1; // the fewest steps of 2^shift holding `capacity`
+    if (steps == 2 * kSteps) steps = kSteps, ++shift;
+    return std::uint32_t(kSteps * (shift + 1) - 2 + (steps - kSteps));
+  }
+
+private:
   Slot allocate_here(std::uint32_t cls) {
     while (classes_.size() <= cls) classes_.emplace_back(std::uint32_t(classes_.size()));
     return Slot{classes_[cls].allocate(), cls};
@@ -2753,7 +2806,7 @@ template <class T, class Tr, int W> int find_scapegoat(const Core<T, Tr, W> &cor
     std::size_t heaviest = 0;
     if (any_child) {
       const Node<W> &node = nodes.node(a);
-      for (int c = 0; c < node.num_children; ++c) heaviest = std::max(heaviest, nodes.info(node.child(c)).count);
+      for (int c = 0; c < node.num_children; ++c) heaviest = std::max<std::size_t>(heaviest, nodes.info(node.child(c)).count);
     } else {
       heaviest = nodes.info(below).count; // (a is below's parent: an inner node)
     }
@@ -3993,9 +4046,15 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
     auto run_lane = [&](std::size_t k) {
       Lane &lane = frontier.lanes[k];
       struct InLane { // (this thread's allocations go to the lane's cache meanwhile)
-        explicit InLane(LaneCache *cache) { LaneCache::current() = cache; }
-        ~InLane() { LaneCache::current() = nullptr; }
-      } in_lane(&lane.cache);
+        Lane &lane;
+        Core<T, Tr, W> &core;
+        InLane(Lane &l, Core<T, Tr, W> &c) : lane(l), core(c) { LaneCache::current() = &lane.cache; }
+        ~InLane() {
+          LaneCache::current() = nullptr;
+          core.nodes.take_back(lane.cache.nodes);
+          core.leaves.take_back(lane.cache.slots);
+        }
+      } in_lane(lane, core);
       for (; lane.done < lane.items.size(); ++lane.done) {
         if (failed.load(std::memory_order_relaxed)) return;
         if (nodes.shared() && shared.taken.load(std::memory_order_relaxed) > slack) return;

@@ -848,6 +848,7 @@ template <class T> void memory_parts(const std::vector<T> &kept, std::ostream &o
   wide(std::integral_constant<int, 8>(), 4);
   wide(std::integral_constant<int, 8>(), 8);
   wide(std::integral_constant<int, 8>(), 16);
+  wide(std::integral_constant<int, 8>(), 32);
 }
 
 // ---------------------------------------------------------------------------

@@ -290,11 +290,11 @@ TEST(disjoint_gives_back_the_lanes_room) {
     const auto got = tree.memory(), want = loop.memory();
     note("BVH_SEED=" + std::to_string(seed) + " depth " + std::to_string(depth) + ": " +
          std::to_string(got.total()) + " bytes against the loop's " + std::to_string(want.total()));
-    // (The lanes' unused cached slots end on the free lists, one set per
-    // round of lanes; from 512 shapes, as here, there are more rounds than
-    // with bvh.h's default, where the bookkeeping stays within 2x + 4096.)
+    // (A lane gives its cached nodes and slots back when it ends: kept
+    // until all lanes ended, one slot of every class a leaf grew through in
+    // every lane made this tree 2.2x the loop's at depth 6.)
     CHECK(got.pool_index <= 3 * want.pool_index + 4096);
-    CHECK(got.total() <= want.total() * 3 / 2);
+    CHECK(got.total() <= want.total() * 11 / 10);
   }
 }
 

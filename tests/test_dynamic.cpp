@@ -169,6 +169,19 @@ struct Tracked {
 };
 int Tracked::live = 0;
 
+TEST(leaf_pool_slots_are_nearly_full) {
+  // The classes: each the smallest that holds n shapes, ever larger, and
+  // a slot of n shapes in its class has fewer than n / kSteps empty places
+  // (but a slot of 3: there is none).
+  using Pool = bvh::detail::LeafPool<Tracked>;
+  for (std::uint32_t c = 1; c < 120; ++c) CHECK(Pool::capacity_of(c) > Pool::capacity_of(c - 1));
+  for (std::size_t n = 1; n <= 100000; ++n) {
+    const std::uint32_t c = Pool::class_for(n);
+    CHECK(Pool::capacity_of(c) >= n && (c == 0 || Pool::capacity_of(c - 1) < n));
+    CHECK(n == 3 || (Pool::kSteps + 1) * n > Pool::kSteps * Pool::capacity_of(c));
+  }
+}
+
 TEST(leaf_pool_matches_a_model) {
   const unsigned seed = base_seed() + 2100;
   note("BVH_SEED=" + std::to_string(seed));
@@ -213,7 +226,7 @@ TEST(leaf_pool_matches_a_model) {
         pool.release(gone);
         slots.erase(slots.begin() + long(k));
         model.erase(model.begin() + long(k));
-        const Pool::Slot again = pool.allocate(std::size_t(1) << gone.cls);
+        const Pool::Slot again = pool.allocate(Pool::capacity_of(gone.cls));
         CHECK(again.cls == gone.cls && again.index == gone.index);
         slots.push_back(again);
         model.emplace_back();
