@@ -227,6 +227,46 @@ private:
   std::vector<int> spill_;
 };
 
+/// A vector of up to N elements on the call stack, moved to the heap when
+/// it outgrows them: best_first's heaps, so that a query of a few answers
+/// never allocates. E: default-constructible and copyable.
+template <class E, std::size_t N> class InlineVector {
+public:
+  InlineVector() = default;
+  InlineVector(const InlineVector &) = delete;
+  InlineVector &operator=(const InlineVector &) = delete;
+  void clear() { size_ = 0; }
+  void reserve(std::size_t n) {
+    if (n <= capacity_) return;
+    std::vector<E> bigger(std::max(n, 2 * capacity_));
+    std::copy(begin(), end(), bigger.begin());
+    spill_.swap(bigger);
+    data_ = spill_.data();
+    capacity_ = spill_.size();
+  }
+  void push_back(const E &e) {
+    if (size_ == capacity_) reserve(size_ + 1);
+    data_[size_++] = e;
+  }
+  void pop_back() { --size_; }
+  std::size_t size() const { return size_; }
+  bool empty() const { return size_ == 0; }
+  E &front() { return data_[0]; }
+  const E &front() const { return data_[0]; }
+  E &back() { return data_[size_ - 1]; }
+  const E &operator[](std::size_t i) const { return data_[i]; }
+  E *begin() { return data_; }
+  E *end() { return data_ + size_; }
+  const E *begin() const { return data_; }
+  const E *end() const { return data_ + size_; }
+
+private:
+  E inline_[N];
+  std::vector<E> spill_;
+  E *data_ = inline_;
+  std::size_t size_ = 0, capacity_ = N;
+};
+
 /// The node arrays: a vector's interface (index, size, emplace_back) over
 /// fixed blocks of kBlock elements. Growing never moves or copies what is
 /// stored, so a growing tree never holds two copies of its nodes at once,
@@ -3264,9 +3304,12 @@ template <class T> struct Found {
 template <class P> struct PointMetric {
   const P &p;
   template <int W> double box_key(const Node<W> &node, int c) const {
+    return box_key(Box{node.lo_x[c], node.lo_y[c], node.hi_x[c], node.hi_y[c]});
+  }
+  double box_key(const Box &b) const {
     const double px = p.x, py = p.y;
-    const double dx = std::max({double(node.lo_x[c]) - px, 0.0, px - double(node.hi_x[c])});
-    const double dy = std::max({double(node.lo_y[c]) - py, 0.0, py - double(node.hi_y[c])});
+    const double dx = std::max({b.x0 - px, 0.0, px - b.x1});
+    const double dy = std::max({b.y0 - py, 0.0, py - b.y1});
     return dx * dx + dy * dy;
   }
   template <class T> double shape_key(const T &s) const { return distance(p, s); }
@@ -3279,9 +3322,9 @@ template <class P> struct PointMetric {
 template <class P> struct RayMetric {
   const P &origin, &direction;
   template <int W> double box_key(const Node<W> &node, int c) const {
-    const Box b{node.lo_x[c], node.lo_y[c], node.hi_x[c], node.hi_y[c]};
-    return b.ray_entry(origin.x, origin.y, direction.x, direction.y);
+    return box_key(Box{node.lo_x[c], node.lo_y[c], node.hi_x[c], node.hi_y[c]});
   }
+  double box_key(const Box &b) const { return b.ray_entry(origin.x, origin.y, direction.x, direction.y); }
   template <class T> double shape_key(const T &s) const { return ray_hit(origin, direction, s); }
   static double beyond(double worst) { return worst * (1 + 1e-12) + 1e-300; }
 };
@@ -3291,16 +3334,55 @@ template <class P> struct RayMetric {
 /// are taken in order of metric.box_key, a lower bound on the keys of the
 /// shapes under a child; the search stops when the next node's bound is
 /// past metric.beyond(the k-th key so far). O(log n + k) typically.
-template <class T, class Tr, int W, class Metric>
-void best_first(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k, std::vector<Found<T>> &found) {
+template <class T, class Tr, int W, class Metric, class Answers>
+void best_first(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k, Answers &found) {
   found.clear();
   if (k == 0 || core.root < 0) return;
   const double inf = std::numeric_limits<double>::infinity();
   found.reserve(std::min(k, core.size) + 1); // a max-heap of the best min(k, seen) so far
   auto bound = [&] { return found.size() < k ? inf : metric.beyond(found.front().key); };
+  auto visit_leaf = [&](const Node<W> &node) {
+    // The ids only once a shape is near enough to need its tie-break.
+    const Span<const T> v = core.leaves.shapes(node);
+    const std::uint32_t *ids = nullptr;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      // (once k are found, a shape whose box is beyond the k-th needs no
+      // exact key: the box costs a few compares, the key a square root)
+      if (found.size() == k && metric.box_key(box_of(core.traits, v[i])) > bound()) continue;
+      const double d = metric.shape_key(v[i]);
+      if (!(d < inf) || (found.size() == k && d > found.front().key)) continue;
+      if (!ids) ids = core.leaves.ids(node);
+      const Found<T> f{d, ids[i], &v[i]};
+      if (found.size() < k) {
+        found.push_back(f);
+        std::push_heap(found.begin(), found.end());
+      } else if (f < found.front()) {
+        std::pop_heap(found.begin(), found.end());
+        found.back() = f;
+        std::push_heap(found.begin(), found.end());
+      }
+    }
+  };
+  // First a dive along the nearest boxes to one leaf: its shapes bound
+  // the search, which would otherwise push every child it passes on its
+  // way to the first leaf (the bound is +inf until k shapes are found).
+  // (A leaf may fill all k only when k <= split_threshold.)
+  int dive = k <= std::size_t(core.split_threshold) ? core.root : -1;
+  while (dive >= 0 && !core.nodes.node(dive).is_leaf()) {
+    const Node<W> &node = core.nodes.node(dive);
+    double least = inf;
+    int next = -1;
+    for (int c = 0; c < node.num_children; ++c) {
+      const double key = metric.box_key(node, c);
+      if (key < least) least = key, next = node.child(c);
+    }
+    if (next < 0) break; // (no child has a finite key)
+    dive = next;
+  }
+  if (dive >= 0 && core.nodes.node(dive).is_leaf()) visit_leaf(core.nodes.node(dive));
+  else dive = -1;
   using Entry = std::pair<double, int>; // (box key, node)
-  std::vector<Entry> heap;
-  heap.reserve(64);
+  InlineVector<Entry, 128> heap;
   heap.push_back({0.0, core.root});
   while (!heap.empty()) {
     std::pop_heap(heap.begin(), heap.end(), std::greater<Entry>());
@@ -3309,23 +3391,7 @@ void best_first(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k,
     if (e.first > bound()) break;
     const Node<W> &node = core.nodes.node(e.second);
     if (node.is_leaf()) {
-      // The ids only once a shape is near enough to need its tie-break.
-      const Span<const T> v = core.leaves.shapes(node);
-      const std::uint32_t *ids = nullptr;
-      for (std::size_t i = 0; i < v.size(); ++i) {
-        const double d = metric.shape_key(v[i]);
-        if (!(d < inf) || (found.size() == k && d > found.front().key)) continue;
-        if (!ids) ids = core.leaves.ids(node);
-        const Found<T> f{d, ids[i], &v[i]};
-        if (found.size() < k) {
-          found.push_back(f);
-          std::push_heap(found.begin(), found.end());
-        } else if (f < found.front()) {
-          std::pop_heap(found.begin(), found.end());
-          found.back() = f;
-          std::push_heap(found.begin(), found.end());
-        }
-      }
+      if (e.second != dive) visit_leaf(node); // (the dive's leaf is done)
       continue;
     }
     const double limit = bound();
@@ -4756,7 +4822,7 @@ public:
   /// answer is one definite list. Returns out's end. O(log n + k)
   /// typically.
   template <class Out> Out nearest(const Point &p, std::size_t k, Out out) const {
-    std::vector<detail::Found<T>> found;
+    detail::InlineVector<detail::Found<T>, 16> found;
     detail::best_first(core_, detail::PointMetric<Point>{p}, k, found);
     for (const auto &f : found) *out++ = neighbor{f.shape, f.key, handle{f.id}};
     return out;
@@ -4817,7 +4883,7 @@ private:
 
   /// best_first() for one answer: its shape, with its key in *key.
   template <class Metric> const T *best_one(const Metric &metric, double *key) const {
-    std::vector<detail::Found<T>> found;
+    detail::InlineVector<detail::Found<T>, 1> found;
     detail::best_first(core_, metric, 1, found);
     if (key) *key = found.empty() ? std::numeric_limits<double>::infinity() : found[0].key;
     return found.empty() ? nullptr : found[0].shape;

@@ -246,10 +246,10 @@ std::vector<std::pair<double, std::uint32_t>> brute_nearest(const std::vector<st
   return v;
 }
 
-template <class T> void nearest_against_brute(unsigned seed, double grid) {
-  note("BVH_SEED=" + std::to_string(seed));
+template <class T, int W = 3> void nearest_against_brute(unsigned seed, double grid, int split = 3) {
+  note("BVH_SEED=" + std::to_string(seed) + " width " + std::to_string(W) + " split " + std::to_string(split));
   Maker make(seed, grid);
-  BVH<T> tree(3, 0);
+  BVH<T, bvh::shape_traits<T>, W> tree(split, 0);
   std::vector<std::pair<std::uint32_t, T>> all;
   for (const T &s : make.scene<T>(scaled(1500), 8)) all.push_back({tree.insert(s).id, s});
   // Duplicates and a cluster: ties at every distance.
@@ -257,7 +257,7 @@ template <class T> void nearest_against_brute(unsigned seed, double grid) {
   for (int q = 0; q < scaled(300); ++q) {
     const Point p(make.coord(-50, 1050), make.coord(-50, 1050));
     const std::size_t k = q % 3 == 0 ? std::size_t(make.rng() % (all.size() + 10)) : std::size_t(q % 12);
-    std::vector<typename BVH<T>::neighbor> got;
+    std::vector<typename BVH<T, bvh::shape_traits<T>, W>::neighbor> got;
     tree.nearest(p, k, std::back_inserter(got));
     const auto want = brute_nearest(all, p, k);
     CHECK_EQ(got.size(), want.size());
@@ -276,6 +276,12 @@ template <class T> void nearest_against_brute(unsigned seed, double grid) {
 
 TEST(k_nearest_disks_against_brute_force) { nearest_against_brute<Disk>(base_seed() + 3700, 0); }
 TEST(k_nearest_on_a_grid_with_ties) { nearest_against_brute<Disk>(base_seed() + 3701, 25); }
+// (Wide leaves: the search first dives to one leaf, when k <= split_threshold.)
+TEST(k_nearest_at_width_8_split_16) {
+  nearest_against_brute<Disk, 8>(base_seed() + 3704, 0, 16);
+  nearest_against_brute<Disk, 8>(base_seed() + 3705, 25, 16);
+  nearest_against_brute<Triangle, 4>(base_seed() + 3706, 10, 6);
+}
 TEST(k_nearest_triangles_and_quads) {
   nearest_against_brute<Triangle>(base_seed() + 3702, 0);
   nearest_against_brute<Quad>(base_seed() + 3703, 10);
