@@ -5,7 +5,9 @@
 //
 // Pairs: every method counts the intersecting pairs of the same disks with
 // the same exact predicate (intersect.h), and the run checks they agree.
-//   ours   construct() + count_overlapping_pairs() (self-traversal)
+//   ours   construct() + count_overlapping_pairs() (self-traversal), the
+//          course's tree (width 3, split_threshold 4), then width 8 with
+//          split_threshold 16 and 32
 //   Boost  packed rtree (range constructor) + one query per disk, pairs i < j
 //   Box2D  CreateProxy per disk + one Query per proxy, pairs i < j (what
 //          its broadphase does)
@@ -58,8 +60,9 @@ template <class F> double median_time(int runs, F &&f, std::size_t &count) {
   return t[t.size() / 2];
 }
 
-std::size_t pairs_ours(const std::vector<Disk> &v) {
-  BVH<Disk> tree(4, BVH<Disk>::unlimited);
+/// construct() + count_overlapping_pairs() at width W, split_threshold `split`.
+template <int W = 3> std::size_t pairs_ours(const std::vector<Disk> &v, int split = 4) {
+  BVH<Disk, bvh::shape_traits<Disk>, W> tree(split, BVH<Disk>::unlimited);
   tree.construct(v);
   return tree.count_overlapping_pairs();
 }
@@ -135,6 +138,8 @@ void pairs_row(const char *scene, const std::vector<Disk> &v, int runs) {
                 count == ours_count ? "" : "   DISAGREES");
     if (count != ours_count) std::exit(1);
   };
+  row("ours width 8, split 16", median_time(runs, [&] { return pairs_ours<8>(v, 16); }, count));
+  row("ours width 8, split 32", median_time(runs, [&] { return pairs_ours<8>(v, 32); }, count));
 #if HAVE_BOOST
   row("Boost packed rtree + queries", median_time(runs, [&] { return pairs_boost(v); }, count));
 #else

@@ -493,13 +493,16 @@ TEST(distance_and_ray_hand_cases) {
 // ---------------------------------------------------------------------------
 // all pairs
 
-template <class T, int W = 3> void pairs_against_brute_force(unsigned seed) {
+/// (wide_split > 0: split_threshold wide_split, so leaves of up to 64 pair
+/// up through boxed_leaf_pairs.)
+template <class T, int W = 3> void pairs_against_brute_force(unsigned seed, int wide_split = 0) {
   for (int round = 0; round < scaled(30); ++round) {
-    note(seed_note(seed, round, kind_at<T, W>()));
+    note(seed_note(seed, round, kind_at<T, W>()) + (wide_split ? " split " + std::to_string(wide_split) : ""));
     Maker make(seed + unsigned(round), round % 3 == 0 ? 20.0 : 0.0);
     std::mt19937 &rng = make.rng;
     int split, depth;
     parameters(rng, split, depth);
+    if (wide_split > 0) split = wide_split;
     const int n = round < 2 ? round : int(rng() % 500);
     std::vector<T> shapes = make.template scene<T>(n, round % 2 ? 60 : 15);
     if (n > 3) shapes[2] = shapes[1];
@@ -604,6 +607,11 @@ TEST(width_8_queries_match_brute_force) { queries_against_brute_force<Shape, 8>(
 TEST(width_2_pairs_match_brute_force) { pairs_against_brute_force<Disk, 2>(base_seed() + 2600); }
 TEST(width_4_pairs_match_brute_force) { pairs_against_brute_force<Shape, 4>(base_seed() + 2700); }
 TEST(width_8_pairs_match_brute_force) { pairs_against_brute_force<Disk, 8>(base_seed() + 2800); }
+TEST(wide_leaves_pairs_match_brute_force) {
+  pairs_against_brute_force<Disk, 8>(base_seed() + 2810, 16);
+  pairs_against_brute_force<Shape, 8>(base_seed() + 2820, 32);
+  pairs_against_brute_force<Triangle, 3>(base_seed() + 2830, 12);
+}
 TEST(width_2_sah_build_valid_and_correct) { sah_build_against_brute_force<Shape, 2>(base_seed() + 2900); }
 TEST(width_4_sah_build_valid_and_correct) { sah_build_against_brute_force<Disk, 4>(base_seed() + 3000); }
 TEST(width_8_sah_build_valid_and_correct) { sah_build_against_brute_force<Shape, 8>(base_seed() + 3100); }
