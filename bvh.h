@@ -1240,6 +1240,20 @@ public:
     }
     classes_[s.cls].construct(s.index, std::forward<V>(shape), id);
   }
+  /// Appends `count` shapes moved from take(i) (a T&) with ids id(i) to
+  /// slot s, which has room for them; a throw leaves those moved so far.
+  template <class Take, class Id> void append(Slot s, std::size_t count, Take &take, Id &id) {
+    BVH_INVARIANT(size(s) + count <= capacity_of(s.cls), "appending past a slot's capacity");
+    Class &c = classes_[s.cls];
+    T *d = c.data(s.index);
+    std::uint32_t *ids = c.ids(s.index);
+    std::uint32_t &size = c.sizes[s.index];
+    for (std::size_t i = 0; i < count; ++i) {
+      ::new (static_cast<void *>(d + size)) T(std::move(take(i)));
+      ids[size] = id(i);
+      ++size;
+    }
+  }
   /// True when removing a shape shifts the others in place, which cannot
   /// throw; otherwise erase() copies the others to a new slot first.
   static constexpr bool kShiftsInPlace = std::is_nothrow_move_assignable<T>::value;
@@ -1594,12 +1608,9 @@ public:
     BVH_INVARIANT(!leaf.leaf().has_slot(), "filling a leaf that owns a slot");
     typename LeafPool<T>::Slot s = pool_.allocate(count);
     leaf.set_leaf(record(s));
-    const bool located = built();
-    for (std::size_t i = 0; i < count; ++i) {
-      const std::uint32_t k = id(i);
-      pool_.push_back(s, std::move(take(i)), k);
-      if (located) loc_[k] = Loc{n, std::uint32_t(i)};
-    }
+    pool_.append(s, count, take, id);
+    if (built())
+      for (std::size_t i = 0; i < count; ++i) loc_[id(i)] = Loc{n, std::uint32_t(i)};
     leaf.set_leaf(record(s));
   }
   /// Removes shape i of `leaf`, keeping the others' order (and their ids
@@ -2099,7 +2110,10 @@ public:
   T &shape(std::size_t i) { return items_[i].shape; }
   std::uint32_t id(std::size_t i) const { return src_ ? (*src_)[items_[i].index].id : items_[i].index; }
   void order_leaf(const BuildTask<State> &t) {
-    // Selection left the range unordered; restore the parent's order.
+    // Selection left the range unordered; restore the parent's order. (The
+    // course's order in a leaf is its tree's alone: at other widths the
+    // selections' order stays, as determined by the input.)
+    if constexpr (W != kCourseWidth) return;
     const auto first = items_.begin() + long(t.begin), last = items_.begin() + long(t.end);
     if (t.state.has_parent_key)
       with_order(t.state.parent_key, [&](auto order) { std::sort(first, last, order); });
