@@ -2103,9 +2103,11 @@ public:
   using State = CourseState;
   /// `src`: the shapes the items were made from, for their ids; nullptr
   /// when the ids are the input positions (construct).
+  /// `threads`: how many may halve a node's range at once (construct's
+  /// top nodes; W != 3).
   CourseRule(const Tr &traits, std::vector<Item<T, Tr>> &items, const std::vector<Tagged<T>> *src,
-             CountCut<W> counts)
-      : traits_(traits), items_(items), src_(src), counts_(counts) {}
+             CountCut<W> counts, unsigned threads = 1)
+      : traits_(traits), items_(items), src_(src), counts_(counts), threads_(threads) {}
   Box box(std::size_t i) const { return box_of(traits_, items_[i].shape); }
   T &shape(std::size_t i) { return items_[i].shape; }
   std::uint32_t id(std::size_t i) const { return src_ ? (*src_)[items_[i].index].id : items_[i].index; }
@@ -2135,31 +2137,33 @@ public:
       counts_.cut(t.begin, t.end, depth, cut);
       int groups = 0;
       while (groups < W && cut[groups + 1] > cut[groups]) ++groups;
-      // Halving [g0, g1) of the groups; an explicit stack (at most log2(W) deep).
-      struct Half {
-        int g0, g1;
-        int axis;
-      };
-      Half stack[W];
-      int top = 0;
-      stack[top++] = Half{0, groups, axis};
-      while (top > 0) {
-        const Half h = stack[--top];
-        if (h.g1 - h.g0 < 2) {
-          for (int g = h.g0; g < h.g1; ++g) child[g] = State{3u, Key{h.axis, true}, true};
-          continue;
+      // Halving groups [g0, g1) on `axis` (the recursion is at most log2(W)
+      // deep); the two halves of a large range on two threads at once.
+      auto halve = [&](auto &self, int g0, int g1, int on) -> void {
+        if (g1 - g0 < 2) {
+          for (int g = g0; g < g1; ++g) child[g] = State{3u, Key{on, true}, true};
+          return;
         }
-        const int mid = (h.g0 + h.g1) / 2;
-        const Key key{h.axis, true};
-        with_order(key, [&](auto order) {
-          std::nth_element(first + long(cut[h.g0]), first + long(cut[mid]), first + long(cut[h.g1]), order);
+        const int mid = (g0 + g1) / 2;
+        with_order(Key{on, true}, [&](auto order) {
+          std::nth_element(first + long(cut[g0]), first + long(cut[mid]), first + long(cut[g1]), order);
         });
-        stack[top++] = Half{mid, h.g1, longer_axis(cut[mid], cut[h.g1], h.axis)};
-        stack[top++] = Half{h.g0, mid, longer_axis(cut[h.g0], cut[mid], h.axis)};
-      }
+        auto half = [&](std::size_t right) {
+          if (right) self(self, mid, g1, longer_axis(cut[mid], cut[g1], on));
+          else self(self, g0, mid, longer_axis(cut[g0], cut[mid], on));
+        };
+        if (threads_ > 1 && cut[g1] - cut[g0] >= kParallelHalving) {
+          parallel_for(2, 2, half);
+        } else {
+          half(0);
+          half(1);
+        }
+      };
+      halve(halve, 0, groups, axis);
     }
   }
   static State root_state() { return State{0u, Key{0, false}, false}; }
+  void set_threads(unsigned threads) { threads_ = threads; }
 
 private:
   /// The longer side of the centres of items [begin, end); `ties` when
@@ -2177,10 +2181,13 @@ private:
     if (x1 - x0 == y1 - y0) return ties;
     return x1 - x0 > y1 - y0 ? 0 : 1;
   }
+  /// Ranges from which halving runs its two halves on two threads.
+  static constexpr std::size_t kParallelHalving = std::size_t(1) << 16;
   const Tr &traits_;
   std::vector<Item<T, Tr>> &items_;
   const std::vector<Tagged<T>> *src_;
   CountCut<W> counts_;
+  unsigned threads_;
 };
 
 /// The items of SahRule and InOrderRule: the shapes themselves, taken in
@@ -2746,11 +2753,11 @@ template <class T, class Tr, int W> void construct_by_course_rule(Core<T, Tr, W>
   core.nodes.resize(layout.nodes(core.size, 0));
   core.root = 0;
   core.nodes.reset(0, 0, -1, 0);
+  const unsigned threads = threads_for(core.build_threads);
   CourseRule<T, Tr, W> rule(core.traits, fill_items(core, core.scratch.value.items, elements.size(), [&](std::size_t i) -> const T & { return elements[i]; }),
-                            nullptr, core.counts());
+                            nullptr, core.counts(), threads);
   using Task = BuildTask<CourseState>;
   std::vector<Task> tasks{{0, 0, core.size, 1, CourseRule<T, Tr, W>::root_state()}};
-  const unsigned threads = threads_for(core.build_threads);
   if (threads <= 1 || core.size < kParallelMin) {
     build_top_down(core, tasks, rule, &layout);
   } else {
@@ -2758,6 +2765,7 @@ template <class T, class Tr, int W> void construct_by_course_rule(Core<T, Tr, W>
     for (std::size_t subtrees = W; subtrees < 4 * std::size_t(threads); subtrees *= W) ++defer_depth;
     std::vector<Task> deferred;
     build_top_down(core, tasks, rule, &layout, defer_depth, &deferred);
+    rule.set_threads(1); // (the subtrees are built on every thread already)
     parallel_for(deferred.size(), threads, [&](std::size_t i) {
       std::vector<Task> one{deferred[i]};
       build_top_down(core, one, rule, &layout);

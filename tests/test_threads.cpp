@@ -13,12 +13,7 @@
 
 namespace {
 
-std::string report(const BVH<Disk> &tree) {
-  std::ostringstream out;
-  tree.statistics(out, true);
-  return out.str();
-}
-std::string report(const BVH<Triangle> &tree) {
+template <class Tree> std::string report(const Tree &tree) {
   std::ostringstream out;
   tree.statistics(out, true);
   return out.str();
@@ -26,12 +21,12 @@ std::string report(const BVH<Triangle> &tree) {
 
 /// Builds `shapes` on each number of threads: every tree must validate and
 /// print the one-thread tree's report.
-template <class T>
+template <class T, int W = 3>
 void check_thread_counts(const std::vector<T> &shapes, int k, int limit, const std::vector<unsigned> &thread_counts,
                          const std::string &where) {
   std::string first;
   for (unsigned threads : thread_counts) {
-    BVH<T> tree(k, limit);
+    BVH<T, bvh::shape_traits<T>, W> tree(k, limit);
     tree.set_build_threads(threads);
     tree.construct(shapes);
     std::string why;
@@ -61,6 +56,22 @@ TEST(parallel_build_is_the_sequential_build) {
     const int k = 1 + round % 5, limit = round % 3 == 2 ? 7 : 0;
     check_thread_counts(make.scene<Disk>(int(n), 6), k, limit, thread_counts, where);
     if (full) check_thread_counts(make.scene<Triangle>(int(n), 6), k, limit, thread_counts, where);
+  }
+}
+
+TEST(parallel_build_is_the_sequential_build_at_width_8) {
+  // At widths other than 3 the top node's range is also halved on two
+  // threads at once, from 2^16 shapes: a scene of 3 * 2^16 takes it two
+  // levels down.
+  const unsigned seed = base_seed() + 17;
+  const std::size_t n = 3 * BVH<Disk>::kParallelMin + 123;
+  const bool full = scale() >= 1;
+  const std::vector<unsigned> thread_counts = full ? std::vector<unsigned>{1, 2, 3, 8} : std::vector<unsigned>{1, 2};
+  for (int round = 0; round < (full ? 2 : 1); ++round) {
+    const std::string where = "BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
+    note(where);
+    Maker make(seed + unsigned(round), round % 2 ? 5.0 : 0.0);
+    check_thread_counts<Disk, 8>(make.scene<Disk>(int(n), 6), round ? 16 : 32, 0, thread_counts, where);
   }
 }
 
