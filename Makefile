@@ -230,21 +230,25 @@ bench-instructions: bvh.out $(BUILD)/bench $(BUILD)/instructions
 # RUNS=n (1M, default 5), BIG_RUNS=n (10M, default 3). On a shared machine:
 # nice -n 10 make bench-disjoint, and nothing else heavy meanwhile.
 # ---- make bench-widths: the course's width 3 against widths 4 and 8 (split_threshold
-# 4, 8, 16) on W1, W2 and W3 beside Boost and the grid, W2's memory by part with the
-# fill factor, and W4 and k-nearest at width 8, split 16 (bench/moving.cpp built with
-# BENCH_WIDTH=8 BENCH_SPLIT=16). Raw output to bench/results_widths.txt; RUNS=n
-# (default 5); about 15 minutes.
-$(BUILD)/bench_moving_w8: bench/moving.cpp bench/peers.h $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
-	@if [ "$$(cat $(BUILD)/bench-peers)" = box2d ]; then lib=-lbox2d; def=-DBENCH_HAVE_BOX2D_LIB; else lib=; def=; fi; \
-	echo "$(CXX) $(BENCH_CXXFLAGS) -DBENCH_WIDTH=8 -DBENCH_SPLIT=16 $$def bench/moving.cpp -o $@ $$lib"; \
-	$(CXX) $(BENCH_CXXFLAGS) -pedantic $$def -DBENCH_WIDTH=8 -DBENCH_SPLIT=16 bench/moving.cpp -o $@ $$lib
+# 4, 8, 16, 32) on W1, W2 and W3 beside Boost and the grid, W2's memory by part with
+# the fill factor, and W4 and k-nearest at width 8, split 16 and 32 (bench/moving.cpp
+# built with BENCH_WIDTH=8 BENCH_SPLIT=16 or 32). Raw output to
+# bench/results_widths.txt; RUNS=n (default 5); about 25 minutes.
+define bench_moving_wide
+$(BUILD)/$(1): bench/moving.cpp bench/peers.h $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
+	@if [ "$$$$(cat $(BUILD)/bench-peers)" = box2d ]; then lib=-lbox2d; def=-DBENCH_HAVE_BOX2D_LIB; else lib=; def=; fi; \
+	echo "$(CXX) $(BENCH_CXXFLAGS) -DBENCH_WIDTH=8 -DBENCH_SPLIT=$(2) $$$$def bench/moving.cpp -o $$@ $$$$lib"; \
+	$(CXX) $(BENCH_CXXFLAGS) -pedantic $$$$def -DBENCH_WIDTH=8 -DBENCH_SPLIT=$(2) bench/moving.cpp -o $$@ $$$$lib
+endef
+$(eval $(call bench_moving_wide,bench_moving_w8,16))
+$(eval $(call bench_moving_wide,bench_moving_w8k32,32))
 
-WIDTH_METHODS := ours,ours-w4,ours-w8,ours-w8k8,ours-w8k16,boost-quad16,boost-rstar16,grid
-bench-widths: bvh.out $(BUILD)/bench $(BUILD)/bench_moving $(BUILD)/bench_moving_w8
+WIDTH_METHODS := ours,ours-w4,ours-w8,ours-w8k8,ours-w8k16,ours-w8k32,boost-quad16,boost-rstar16,grid
+bench-widths: bvh.out $(BUILD)/bench $(BUILD)/bench_moving $(BUILD)/bench_moving_w8 $(BUILD)/bench_moving_w8k32
 	@out=bench/results_widths.txt; { echo "make bench-widths at $$(git rev-parse --short HEAD 2>/dev/null) (bvh.h sha1 $$(sha1sum bvh.h | cut -c1-12)), $$(date -u +%Y-%m-%dT%H:%MZ); uptime: $$(uptime)"; \
 	for w in W1 W2 W3; do echo; echo "### $(BUILD)/bench --only $$w --method $(WIDTH_METHODS) --runs $(or $(RUNS),5)"; \
 	  $(BUILD)/bench --only $$w --method $(WIDTH_METHODS) --runs $(or $(RUNS),5) 2>/dev/null; done; \
-	for b in bench_moving bench_moving_w8; do echo; echo "### $(BUILD)/$$b --runs 1"; $(BUILD)/$$b --runs 1; done; } | tee $$out
+	for b in bench_moving bench_moving_w8 bench_moving_w8k32; do echo; echo "### $(BUILD)/$$b --runs 1"; $(BUILD)/$$b --runs 1; done; } | tee $$out
 
 bench-disjoint: bvh.out $(BUILD)/bench
 	$(if $(RUNS),RUNS=$(RUNS)) $(if $(BIG_RUNS),BIG_RUNS=$(BIG_RUNS)) bash bench/disjoint_scaling.sh $(BUILD)
