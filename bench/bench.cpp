@@ -457,6 +457,7 @@ std::vector<Method> all_methods() {
       {"ours-w8k8", "ours width 8, BVH(8)", true, ""},
       {"ours-w8k16", "ours width 8, BVH(16)", true, ""},
       {"ours-w8k32", "ours width 8, BVH(32)", true, ""},
+      {"ours-w8k64", "ours width 8, BVH(64)", true, ""},
       {"ours-par", "ours insert_disjoint, all", true, ""},      // discard workloads only
       {"ours-par1", "ours insert_disjoint(.., 1)", true, ""},   // discard workloads only
       {"brute", "brute force", true, ""},
@@ -478,6 +479,7 @@ template <class T> bool run_discard(const std::string &m, const std::vector<T> &
   else if (m == "ours-w8k8") o = discard_ours<T, 8>(c, 0, 8);
   else if (m == "ours-w8k16") o = discard_ours<T, 8>(c, 0, 16);
   else if (m == "ours-w8k32") o = discard_ours<T, 8>(c, 0, 32);
+  else if (m == "ours-w8k64") o = discard_ours<T, 8>(c, 0, 64);
   else if (m == "ours-par") o = discard_ours_par(c, 0);
   else if (m == "ours-par1") o = discard_ours_par(c, 1);
   else if (m == "brute") o = discard_brute(c);
@@ -504,6 +506,7 @@ template <class T> bool run_bulk(const std::string &m, const std::vector<T> &bas
   else if (m == "ours-w8k8") o = bulk_ours<T, 8>(base, probes, 0, 0, 8);
   else if (m == "ours-w8k16") o = bulk_ours<T, 8>(base, probes, 0, 0, 16);
   else if (m == "ours-w8k32") o = bulk_ours<T, 8>(base, probes, 0, 0, 32);
+  else if (m == "ours-w8k64") o = bulk_ours<T, 8>(base, probes, 0, 0, 64);
 #if BENCH_HAVE_BOOST
   else if (m == "boost-quad16") o = bulk_boost<bgi::quadratic<16>>(base, probes);
   else if (m == "boost-rstar16") o = bulk_boost<bgi::rstar<16>>(base, probes);
@@ -1110,7 +1113,7 @@ void usage() {
                "                    (default 5, 3 for the 1M workloads, 1 with --only)\n"
                "  --only WORKLOAD   one workload: W1 W2 W3 tri quad S1000 ... S1000000\n"
                "                    (implies --in-process; no files are written)\n"
-               "  --method NAME     one method (or several: NAME,NAME): ours ours-1t ours-d8 ours-w4 ours-w8 ours-w8k8 ours-w8k16 ours-w8k32 ours-par ours-par1 brute boost-quad16 boost-rstar16 box2d grid\n"
+               "  --method NAME     one method (or several: NAME,NAME): ours ours-1t ours-d8 ours-w4 ours-w8 ours-w8k8 ours-w8k16 ours-w8k32 ours-w8k64 ours-par ours-par1 brute boost-quad16 boost-rstar16 box2d grid\n"
                "  --big N           N candidates in W1, W2 and W3 instead of 1M (the 10M scaling point:\n"
                "                    --big 10000000 --only W2 --method ours, then boost-quad16, grid)\n"
                "  --in-process      no fork per run (for valgrind/perf); peak RSS is then cumulative\n"
