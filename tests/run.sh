@@ -17,7 +17,7 @@
 # Environment: CXX (the compiler of the default build), COURSE_DATA (the
 # course's files; golden cases on them are skipped with a notice when the
 # folder is missing), BUILD (where `make` puts the binaries), JOBS (parallel
-# jobs; default: the number of cores), FUZZ_SECONDS (default 60),
+# jobs; default: the number of cores), FUZZ_SECONDS (default 15; make fuzz: 60),
 # UPDATE_GOLDEN=1 (write missing golden files instead of failing: each new
 # file must then be checked by hand before it is committed).
 set -u
@@ -200,10 +200,7 @@ unit_tests() {
   run_suite test_disjoint "$BUILD/test_disjoint"
   # Fault injection: every mutating operation at its k-th copy and allocation (issue 21).
   run_suite test_exceptions "$BUILD/test_exceptions"
-  # collision() without SSE2 (BVH_NO_SIMD): the scalar fallback against the same brute force.
-  BVH_TEST_SCALE=0.3 run_suite test_bvh_scalar "$BUILD/test_bvh_scalar"
-  # The same at every width (2, 4 and 8 test four children a pass, or two passes at 8).
-  BVH_TEST_SCALE=0.3 run_suite test_dynamic_scalar "$BUILD/test_dynamic_scalar"
+  # (collision()'s scalar fallback, BVH_NO_SIMD: the portable layer's build.)
 }
 
 # make check's unit tests: the same suites, built at -O1 into $BUILD/check
@@ -232,16 +229,16 @@ unit_tests_quick() {
 sanitizers() {
   local s=_sanitized
   [ "$HAVE_LIBCXX" = yes ] && s=_sanitized_libcxx
-  BVH_TEST_SCALE=0.3 run_suite test_bvh$s "$BUILD/test_bvh_san"
+  BVH_TEST_SCALE=0.1 run_suite test_bvh$s "$BUILD/test_bvh_san"
   BVH_TEST_SCALE=0.3 run_suite test_threads$s "$BUILD/test_threads_san"
-  BVH_TEST_SCALE=0.3 run_suite test_intersect$s "$BUILD/test_intersect_san"
-  BVH_TEST_SCALE=0.5 run_suite test_dynamic$s "$BUILD/test_dynamic_san"
-  BVH_TEST_SCALE=0.5 run_suite test_moving$s "$BUILD/test_moving_san"
-  BVH_TEST_SCALE=0.3 run_suite test_lazy_handles$s "$BUILD/test_lazy_handles_san"
+  BVH_TEST_SCALE=0.1 run_suite test_intersect$s "$BUILD/test_intersect_san"
+  BVH_TEST_SCALE=0.2 run_suite test_dynamic$s "$BUILD/test_dynamic_san"
+  BVH_TEST_SCALE=0.2 run_suite test_moving$s "$BUILD/test_moving_san"
+  BVH_TEST_SCALE=0.1 run_suite test_lazy_handles$s "$BUILD/test_lazy_handles_san"
   BVH_TEST_SCALE=0.1 run_suite test_parse$s "$BUILD/test_parse_san"
   run_suite test_names$s "$BUILD/test_names_san"
-  BVH_TEST_SCALE=0.3 run_suite test_disjoint$s "$BUILD/test_disjoint_san"
-  BVH_TEST_SCALE=0.5 run_suite test_exceptions$s "$BUILD/test_exceptions_san"
+  BVH_TEST_SCALE=0.1 run_suite test_disjoint$s "$BUILD/test_disjoint_san"
+  BVH_TEST_SCALE=0.2 run_suite test_exceptions$s "$BUILD/test_exceptions_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
     '$BUILD/bvh_san.out' -i inputs/gen_overlap_1000.triangles -o '$OUT/san.html' --depth_limit 8 --incremental \
@@ -250,15 +247,17 @@ sanitizers() {
 }
 
 # Portable builds: test_bvh and test_dynamic under -std=c++20 (g++; test_bvh
-# then also static_asserts std::bidirectional_iterator). (The libc++ build is
-# the sanitizer layer's.) Every case at 0.3 of its random rounds: the
-# question here is whether each case builds and passes there; the full
-# rounds run in the default build.
+# then also static_asserts std::bidirectional_iterator), built with
+# -DBVH_NO_SIMD: collision()'s scalar fallback instead of SSE2 against the
+# same brute force, at every width (2, 4 and 8 test four children a pass, or
+# two passes at 8). (The libc++ build is the sanitizer layer's.) Every case
+# at 0.3 of its random rounds: the question here is whether each case builds
+# and passes there; the full rounds run in the default build.
 portable() {
   local BVH_TEST_SCALE=0.3
   export BVH_TEST_SCALE
-  run_suite test_bvh_cxx20 "$BUILD/test_bvh_cxx20"
-  run_suite test_dynamic_cxx20 "$BUILD/test_dynamic_cxx20"
+  run_suite test_bvh_cxx20_no_simd "$BUILD/test_bvh_cxx20"
+  run_suite test_dynamic_cxx20_no_simd "$BUILD/test_dynamic_cxx20"
   if [ "$HAVE_LIBCXX" != yes ]; then
     skip "test_*_libcxx" "clang++ with libc++ is not installed (apt-get install clang libc++-dev libc++abi-dev): the sanitizer builds, which are also the libc++ build when it is there, used g++"
   fi
@@ -297,8 +296,8 @@ asserts() {
 # queries from several threads) under ThreadSanitizer: a data race fails it.
 tsan() {
   BVH_TEST_SCALE=0.25 run_suite test_threads_under_thread_sanitizer "$BUILD/test_threads_tsan"
-  BVH_TEST_SCALE=0.2 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_disjoint_tsan"
-  BVH_TEST_SCALE=0.2 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lazy_handles_tsan"
+  BVH_TEST_SCALE=0.1 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_disjoint_tsan"
+  BVH_TEST_SCALE=0.1 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lazy_handles_tsan"
 }
 
 # bvh.h alone in the course's framework (stand-ins written from the spec),
@@ -526,9 +525,9 @@ fuzz() {
   mkdir -p "$BUILD/fuzz-work"
   local log
   log=$(logname fuzz_parser)
-  if "$BUILD/fuzz_parser" -max_total_time="${FUZZ_SECONDS:-60}" -print_final_stats=1 \
+  if "$BUILD/fuzz_parser" -max_total_time="${FUZZ_SECONDS:-15}" -print_final_stats=1 \
     -artifact_prefix="$BUILD/fuzz-crash-" "$BUILD/fuzz-work" tests/fuzz_corpus >"$log" 2>&1; then
-    ok "fuzz_parser_${FUZZ_SECONDS:-60}s_$(grep -o 'number_of_executed_units: [0-9]*' "$log" | grep -o '[0-9]*$')_runs"
+    ok "fuzz_parser_${FUZZ_SECONDS:-15}s_$(grep -o 'number_of_executed_units: [0-9]*' "$log" | grep -o '[0-9]*$')_runs"
   else
     bad fuzz_parser "a finding: see $log and $BUILD/fuzz-crash-*"
   fi
@@ -559,6 +558,7 @@ if [ "$QUICK" = yes ]; then
   rm -f "$BUILD"/check/test_*.out # make runs each unit test again
   targets+=(check-build)
 else
+  targets+=(test-build-longest)
   [ "$HAVE_FUZZER" = yes ] && targets+=("$BUILD/fuzz_parser")
   targets+=(test-build-san test-build-gcc)
 fi
