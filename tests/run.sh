@@ -487,7 +487,7 @@ valgrind_layer() {
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_threads "${VG[@]}" "$BUILD/test_threads"
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_intersect"
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_dynamic"
-  BVH_TEST_SCALE=0.5 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_moving"
+  BVH_TEST_SCALE=0.25 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_moving"
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lazy_handles"
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_parse"
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_disjoint"
@@ -553,12 +553,19 @@ if [ "$QUICK" = no ] && ! have clang++; then
   skip "clang++ builds" "clang++ not installed (apt-get install clang): the libc++ build, the fuzzer and clang++'s course-framework build are skipped; g++ builds the sanitizer tests" |
     tee "$RESULTS/build_notices.txt"
 fi
-targets=() # the longest compiles first, so that -j ends on short ones
+# Two makes, one after the other: first=(...), then targets=(...), the
+# longest compiles first in each, so that -j ends on short ones. The first
+# builds what the valgrind layer, the longest, runs (bvh.out and the unit
+# suites: the Makefile's test-build-longest); that layer then starts beside
+# the second.
+first=()
+targets=()
 if [ "$QUICK" = yes ]; then
   rm -f "$BUILD"/check/test_*.out # make runs each unit test again
   targets+=(check-build)
 else
-  targets+=(test-build-longest)
+  first+=(test-build-longest)
+  targets+=("$BUILD/bvh_san.out")
   [ "$HAVE_FUZZER" = yes ] && targets+=("$BUILD/fuzz_parser")
   targets+=(test-build-san test-build-gcc)
 fi
@@ -568,54 +575,71 @@ compile_re="^($(printf '%s' "$CXX" | sed 's/[+.]/\\&/g')|g\+\+|clang\+\+) "
 # build then), else g++.
 if [ "$HAVE_LIBCXX" = yes ]; then SAN_CXX="clang++ -stdlib=libc++"; else SAN_CXX=$CXX; fi
 export SAN_CXX
-todo=$($MAKE --no-print-directory -n -k "${targets[@]}" 2>/dev/null | grep -cE "$compile_re")
-echo "building: $MAKE -k -j$JOBS ${targets[*]}: $todo compiles to do (log: $LOGS/build.log)"
+todo=$($MAKE --no-print-directory -n -k "${first[@]}" "${targets[@]}" 2>/dev/null | grep -cE "$compile_re")
+echo "building: $MAKE -k -j$JOBS ${first[*]}${first[*]:+, then }${targets[*]}: $todo compiles to do (log: $LOGS/build.log)"
 build_start=$SECONDS
-{
-  $MAKE --no-print-directory -k -j"$JOBS" --output-sync=target "${targets[@]}" >"$LOGS/build.log" 2>&1 &
-  make_pid=$!
-  last=$SECONDS
-  while kill -0 "$make_pid" 2>/dev/null; do
-    sleep 1
-    if [ $((SECONDS - last)) -ge "$HEARTBEAT" ]; then
-      echo "   ... building: $(grep -cE "$compile_re" "$LOGS/build.log") of $todo compiles done ($((SECONDS - build_start)) s)"
-      last=$SECONDS
-    fi
-  done
-  if wait "$make_pid"; then
-    ok "build_$((SECONDS - build_start))s"
-  else
-    bad build "make failed: see $LOGS/build.log"
+# (The build's results go to $RESULTS/build.txt too; not through a pipe, so
+# that a layer started during the build is this shell's.)
+build_result() { "$@" | tee -a "$RESULTS/build.txt"; }
+VALGRIND_EARLY=no
+rm -f "$RESULTS/first-built"
+(
+  rc=0
+  if [ ${#first[@]} -gt 0 ]; then
+    $MAKE --no-print-directory -k -j"$JOBS" --output-sync=target "${first[@]}" || rc=1
+    : >"$RESULTS/first-built"
   fi
-  if grep -qE 'warning:' "$LOGS/build.log"; then
-    bad compiles_without_warnings "$(grep -m 3 -E 'warning:' "$LOGS/build.log" | tr '\n' ' ')"
-  else
-    ok compiles_without_warnings
+  $MAKE --no-print-directory -k -j"$JOBS" --output-sync=target "${targets[@]}" || rc=1
+  exit $rc
+) >"$LOGS/build.log" 2>&1 &
+make_pid=$!
+last=$SECONDS
+while kill -0 "$make_pid" 2>/dev/null; do
+  sleep 1
+  if [ "$VALGRIND_EARLY" = no ] && [ -f "$RESULTS/first-built" ]; then
+    VALGRIND_EARLY=yes
+    echo "   (the unit suites and bvh.out are built: valgrind starts beside the rest of the build, $((SECONDS - build_start)) s)"
+    layer valgrind valgrind_layer
   fi
-} | tee "$RESULTS/build.txt"
+  if [ $((SECONDS - last)) -ge "$HEARTBEAT" ]; then
+    echo "   ... building: $(grep -cE "$compile_re" "$LOGS/build.log") of $todo compiles done ($((SECONDS - build_start)) s)"
+    last=$SECONDS
+  fi
+done
+if wait "$make_pid"; then
+  build_result ok "build_$((SECONDS - build_start))s"
+else
+  build_result bad build "make failed: see $LOGS/build.log"
+fi
+if grep -qE 'warning:' "$LOGS/build.log"; then
+  build_result bad compiles_without_warnings "$(grep -m 3 -E 'warning:' "$LOGS/build.log" | tr '\n' ' ')"
+else
+  build_result ok compiles_without_warnings
+fi
 
-# 2. The layers, longest first (they run JOBS at a time).
+# 2. The layers, longest first (they run JOBS at a time; valgrind may have
+# started during the build).
 if [ "$QUICK" = yes ]; then
   layer unit unit_tests_quick
   layer golden golden
 else
-  layer fuzz fuzz
-  layer valgrind valgrind_layer
+  [ "$VALGRIND_EARLY" = yes ] || layer valgrind valgrind_layer
   layer sanitizers sanitizers
-  layer cmake cmake_package
-  layer course_framework course_framework
-  layer golden golden
-  layer python_model python_model
   layer unit unit_tests
+  layer course_framework course_framework
+  layer cmake cmake_package
+  layer tsan tsan
+  layer fuzz fuzz
   layer portable portable
+  layer browser browser
   layer cli_errors cli_errors
-  layer cli_output cli_output
+  layer python_model python_model
   layer cli_threads cli_threads
+  layer golden golden
+  layer cli_output cli_output
   layer demo demo_layer
   layer examples examples
   layer asserts asserts
-  layer tsan tsan
-  layer browser browser
 fi
 finish_layers
 
