@@ -46,8 +46,7 @@ bvh.out: main.cpp $(HEADERS)
 # The unit suites at make check's -O1 (UNIT_CXXFLAGS): they test behaviour
 # at their full rounds in a few seconds either way, and -O1 compiles in about
 # half the time of -O2. The -O2 build (CXXFLAGS) is bvh.out's, whose output
-# the golden, command-line, course-framework and browser layers check, and
-# the examples'.
+# the golden, command-line, course-framework and browser layers check.
 UNIT_CXXFLAGS ?= $(CHECK_CXXFLAGS)
 $(BUILD)/test_%: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -I. -Itests $< -o $@
@@ -61,7 +60,7 @@ $(BUILD)/bvh_san.out: main.cpp $(HEADERS) | $(BUILD)
 $(BUILD)/test_%_cxx20: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
 	$(CXX) -std=c++20 $(PORTABLE_FLAGS) -I. -Itests $< -o $@
 
-# (test_asserts at make check's -O1 too.)
+# (test_asserts and the examples at make check's -O1 too.)
 $(BUILD)/test_asserts: tests/test_asserts.cpp $(HEADERS) | $(BUILD)
 	$(CXX) $(CHECK_CXXFLAGS) -I. $< -o $@
 
@@ -75,7 +74,7 @@ $(BUILD)/test_%_tsan: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) |
 	$(CXX) -std=c++17 -O0 -g -Wall -Wextra -pedantic -fsanitize=thread -I. -Itests $< -o $@
 
 $(BUILD)/example_%: examples/%.cpp $(HEADERS) | $(BUILD)
-	$(CXX) $(CXXFLAGS) -I. $< -o $@
+	$(CXX) $(CHECK_CXXFLAGS) -I. $< -o $@
 
 $(BUILD):
 	mkdir -p $(BUILD)
