@@ -17,7 +17,7 @@
 # Environment: CXX (the compiler of the default build), COURSE_DATA (the
 # course's files; golden cases on them are skipped with a notice when the
 # folder is missing), BUILD (where `make` puts the binaries), JOBS (parallel
-# jobs; default: the number of cores), FUZZ_SECONDS (default 60),
+# jobs; default: the number of cores), FUZZ_SECONDS (default 15; make fuzz: 60),
 # UPDATE_GOLDEN=1 (write missing golden files instead of failing: each new
 # file must then be checked by hand before it is committed).
 set -u
@@ -200,10 +200,7 @@ unit_tests() {
   run_suite test_disjoint "$BUILD/test_disjoint"
   # Fault injection: every mutating operation at its k-th copy and allocation (issue 21).
   run_suite test_exceptions "$BUILD/test_exceptions"
-  # collision() without SSE2 (BVH_NO_SIMD): the scalar fallback against the same brute force.
-  BVH_TEST_SCALE=0.3 run_suite test_bvh_scalar "$BUILD/test_bvh_scalar"
-  # The same at every width (2, 4 and 8 test four children a pass, or two passes at 8).
-  BVH_TEST_SCALE=0.3 run_suite test_dynamic_scalar "$BUILD/test_dynamic_scalar"
+  # (collision()'s scalar fallback, BVH_NO_SIMD: the portable layer's build.)
 }
 
 # make check's unit tests: the same suites, built at -O1 into $BUILD/check
@@ -232,16 +229,16 @@ unit_tests_quick() {
 sanitizers() {
   local s=_sanitized
   [ "$HAVE_LIBCXX" = yes ] && s=_sanitized_libcxx
-  BVH_TEST_SCALE=0.3 run_suite test_bvh$s "$BUILD/test_bvh_san"
+  BVH_TEST_SCALE=0.1 run_suite test_bvh$s "$BUILD/test_bvh_san"
   BVH_TEST_SCALE=0.3 run_suite test_threads$s "$BUILD/test_threads_san"
-  BVH_TEST_SCALE=0.3 run_suite test_intersect$s "$BUILD/test_intersect_san"
-  BVH_TEST_SCALE=0.5 run_suite test_dynamic$s "$BUILD/test_dynamic_san"
-  BVH_TEST_SCALE=0.5 run_suite test_moving$s "$BUILD/test_moving_san"
-  BVH_TEST_SCALE=0.3 run_suite test_lazy_handles$s "$BUILD/test_lazy_handles_san"
+  BVH_TEST_SCALE=0.1 run_suite test_intersect$s "$BUILD/test_intersect_san"
+  BVH_TEST_SCALE=0.2 run_suite test_dynamic$s "$BUILD/test_dynamic_san"
+  BVH_TEST_SCALE=0.2 run_suite test_moving$s "$BUILD/test_moving_san"
+  BVH_TEST_SCALE=0.1 run_suite test_lazy_handles$s "$BUILD/test_lazy_handles_san"
   BVH_TEST_SCALE=0.1 run_suite test_parse$s "$BUILD/test_parse_san"
   run_suite test_names$s "$BUILD/test_names_san"
-  BVH_TEST_SCALE=0.3 run_suite test_disjoint$s "$BUILD/test_disjoint_san"
-  BVH_TEST_SCALE=0.5 run_suite test_exceptions$s "$BUILD/test_exceptions_san"
+  BVH_TEST_SCALE=0.1 run_suite test_disjoint$s "$BUILD/test_disjoint_san"
+  BVH_TEST_SCALE=0.2 run_suite test_exceptions$s "$BUILD/test_exceptions_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
     '$BUILD/bvh_san.out' -i inputs/gen_overlap_1000.triangles -o '$OUT/san.html' --depth_limit 8 --incremental \
@@ -250,15 +247,17 @@ sanitizers() {
 }
 
 # Portable builds: test_bvh and test_dynamic under -std=c++20 (g++; test_bvh
-# then also static_asserts std::bidirectional_iterator). (The libc++ build is
-# the sanitizer layer's.) Every case at 0.3 of its random rounds: the
-# question here is whether each case builds and passes there; the full
-# rounds run in the default build.
+# then also static_asserts std::bidirectional_iterator), built with
+# -DBVH_NO_SIMD: collision()'s scalar fallback instead of SSE2 against the
+# same brute force, at every width (2, 4 and 8 test four children a pass, or
+# two passes at 8). (The libc++ build is the sanitizer layer's.) Every case
+# at 0.3 of its random rounds: the question here is whether each case builds
+# and passes there; the full rounds run in the default build.
 portable() {
   local BVH_TEST_SCALE=0.3
   export BVH_TEST_SCALE
-  run_suite test_bvh_cxx20 "$BUILD/test_bvh_cxx20"
-  run_suite test_dynamic_cxx20 "$BUILD/test_dynamic_cxx20"
+  run_suite test_bvh_cxx20_no_simd "$BUILD/test_bvh_cxx20"
+  run_suite test_dynamic_cxx20_no_simd "$BUILD/test_dynamic_cxx20"
   if [ "$HAVE_LIBCXX" != yes ]; then
     skip "test_*_libcxx" "clang++ with libc++ is not installed (apt-get install clang libc++-dev libc++abi-dev): the sanitizer builds, which are also the libc++ build when it is there, used g++"
   fi
@@ -297,8 +296,8 @@ asserts() {
 # queries from several threads) under ThreadSanitizer: a data race fails it.
 tsan() {
   BVH_TEST_SCALE=0.25 run_suite test_threads_under_thread_sanitizer "$BUILD/test_threads_tsan"
-  BVH_TEST_SCALE=0.2 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_disjoint_tsan"
-  BVH_TEST_SCALE=0.2 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lazy_handles_tsan"
+  BVH_TEST_SCALE=0.1 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_disjoint_tsan"
+  BVH_TEST_SCALE=0.1 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lazy_handles_tsan"
 }
 
 # bvh.h alone in the course's framework (stand-ins written from the spec),
@@ -488,7 +487,7 @@ valgrind_layer() {
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_threads "${VG[@]}" "$BUILD/test_threads"
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_intersect"
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_dynamic"
-  BVH_TEST_SCALE=0.5 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_moving"
+  BVH_TEST_SCALE=0.25 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_moving"
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lazy_handles"
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_parse"
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_disjoint"
@@ -526,9 +525,9 @@ fuzz() {
   mkdir -p "$BUILD/fuzz-work"
   local log
   log=$(logname fuzz_parser)
-  if "$BUILD/fuzz_parser" -max_total_time="${FUZZ_SECONDS:-60}" -print_final_stats=1 \
+  if "$BUILD/fuzz_parser" -max_total_time="${FUZZ_SECONDS:-15}" -print_final_stats=1 \
     -artifact_prefix="$BUILD/fuzz-crash-" "$BUILD/fuzz-work" tests/fuzz_corpus >"$log" 2>&1; then
-    ok "fuzz_parser_${FUZZ_SECONDS:-60}s_$(grep -o 'number_of_executed_units: [0-9]*' "$log" | grep -o '[0-9]*$')_runs"
+    ok "fuzz_parser_${FUZZ_SECONDS:-15}s_$(grep -o 'number_of_executed_units: [0-9]*' "$log" | grep -o '[0-9]*$')_runs"
   else
     bad fuzz_parser "a finding: see $log and $BUILD/fuzz-crash-*"
   fi
@@ -554,11 +553,19 @@ if [ "$QUICK" = no ] && ! have clang++; then
   skip "clang++ builds" "clang++ not installed (apt-get install clang): the libc++ build, the fuzzer and clang++'s course-framework build are skipped; g++ builds the sanitizer tests" |
     tee "$RESULTS/build_notices.txt"
 fi
-targets=() # the longest compiles first, so that -j ends on short ones
+# Two makes, one after the other: first=(...), then targets=(...), the
+# longest compiles first in each, so that -j ends on short ones. The first
+# builds what the valgrind layer, the longest, runs (bvh.out and the unit
+# suites: the Makefile's test-build-longest); that layer then starts beside
+# the second.
+first=()
+targets=()
 if [ "$QUICK" = yes ]; then
   rm -f "$BUILD"/check/test_*.out # make runs each unit test again
   targets+=(check-build)
 else
+  first+=(test-build-longest)
+  targets+=("$BUILD/bvh_san.out")
   [ "$HAVE_FUZZER" = yes ] && targets+=("$BUILD/fuzz_parser")
   targets+=(test-build-san test-build-gcc)
 fi
@@ -568,54 +575,71 @@ compile_re="^($(printf '%s' "$CXX" | sed 's/[+.]/\\&/g')|g\+\+|clang\+\+) "
 # build then), else g++.
 if [ "$HAVE_LIBCXX" = yes ]; then SAN_CXX="clang++ -stdlib=libc++"; else SAN_CXX=$CXX; fi
 export SAN_CXX
-todo=$($MAKE --no-print-directory -n -k "${targets[@]}" 2>/dev/null | grep -cE "$compile_re")
-echo "building: $MAKE -k -j$JOBS ${targets[*]}: $todo compiles to do (log: $LOGS/build.log)"
+todo=$($MAKE --no-print-directory -n -k "${first[@]}" "${targets[@]}" 2>/dev/null | grep -cE "$compile_re")
+echo "building: $MAKE -k -j$JOBS ${first[*]}${first[*]:+, then }${targets[*]}: $todo compiles to do (log: $LOGS/build.log)"
 build_start=$SECONDS
-{
-  $MAKE --no-print-directory -k -j"$JOBS" --output-sync=target "${targets[@]}" >"$LOGS/build.log" 2>&1 &
-  make_pid=$!
-  last=$SECONDS
-  while kill -0 "$make_pid" 2>/dev/null; do
-    sleep 1
-    if [ $((SECONDS - last)) -ge "$HEARTBEAT" ]; then
-      echo "   ... building: $(grep -cE "$compile_re" "$LOGS/build.log") of $todo compiles done ($((SECONDS - build_start)) s)"
-      last=$SECONDS
-    fi
-  done
-  if wait "$make_pid"; then
-    ok "build_$((SECONDS - build_start))s"
-  else
-    bad build "make failed: see $LOGS/build.log"
+# (The build's results go to $RESULTS/build.txt too; not through a pipe, so
+# that a layer started during the build is this shell's.)
+build_result() { "$@" | tee -a "$RESULTS/build.txt"; }
+VALGRIND_EARLY=no
+rm -f "$RESULTS/first-built"
+(
+  rc=0
+  if [ ${#first[@]} -gt 0 ]; then
+    $MAKE --no-print-directory -k -j"$JOBS" --output-sync=target "${first[@]}" || rc=1
+    : >"$RESULTS/first-built"
   fi
-  if grep -qE 'warning:' "$LOGS/build.log"; then
-    bad compiles_without_warnings "$(grep -m 3 -E 'warning:' "$LOGS/build.log" | tr '\n' ' ')"
-  else
-    ok compiles_without_warnings
+  $MAKE --no-print-directory -k -j"$JOBS" --output-sync=target "${targets[@]}" || rc=1
+  exit $rc
+) >"$LOGS/build.log" 2>&1 &
+make_pid=$!
+last=$SECONDS
+while kill -0 "$make_pid" 2>/dev/null; do
+  sleep 1
+  if [ "$VALGRIND_EARLY" = no ] && [ -f "$RESULTS/first-built" ]; then
+    VALGRIND_EARLY=yes
+    echo "   (the unit suites and bvh.out are built: valgrind starts beside the rest of the build, $((SECONDS - build_start)) s)"
+    layer valgrind valgrind_layer
   fi
-} | tee "$RESULTS/build.txt"
+  if [ $((SECONDS - last)) -ge "$HEARTBEAT" ]; then
+    echo "   ... building: $(grep -cE "$compile_re" "$LOGS/build.log") of $todo compiles done ($((SECONDS - build_start)) s)"
+    last=$SECONDS
+  fi
+done
+if wait "$make_pid"; then
+  build_result ok "build_$((SECONDS - build_start))s"
+else
+  build_result bad build "make failed: see $LOGS/build.log"
+fi
+if grep -qE 'warning:' "$LOGS/build.log"; then
+  build_result bad compiles_without_warnings "$(grep -m 3 -E 'warning:' "$LOGS/build.log" | tr '\n' ' ')"
+else
+  build_result ok compiles_without_warnings
+fi
 
-# 2. The layers, longest first (they run JOBS at a time).
+# 2. The layers, longest first (they run JOBS at a time; valgrind may have
+# started during the build).
 if [ "$QUICK" = yes ]; then
   layer unit unit_tests_quick
   layer golden golden
 else
-  layer fuzz fuzz
-  layer valgrind valgrind_layer
+  [ "$VALGRIND_EARLY" = yes ] || layer valgrind valgrind_layer
   layer sanitizers sanitizers
-  layer cmake cmake_package
-  layer course_framework course_framework
-  layer golden golden
-  layer python_model python_model
   layer unit unit_tests
+  layer course_framework course_framework
+  layer cmake cmake_package
+  layer tsan tsan
+  layer fuzz fuzz
   layer portable portable
+  layer browser browser
   layer cli_errors cli_errors
-  layer cli_output cli_output
+  layer python_model python_model
   layer cli_threads cli_threads
+  layer golden golden
+  layer cli_output cli_output
   layer demo demo_layer
   layer examples examples
   layer asserts asserts
-  layer tsan tsan
-  layer browser browser
 fi
 finish_layers
 

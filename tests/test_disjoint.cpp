@@ -222,7 +222,9 @@ std::vector<Disk> lanes_candidates(Maker &make) {
 // lanes too (the probe checks that they ran).
 TEST(disjoint_lanes_are_the_loop) {
   const unsigned seed = base_seed() + 500;
-  for (int round = 0; round < 6; ++round) {
+  // (Scaled-down runs: at least the first three rounds, which take both
+  // starts and the depth limit.)
+  for (int round = 0; round < std::max(3, scaled(6)); ++round) {
     const std::string where = "BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
     Maker make(seed + unsigned(round));
     const int split = 1 + round % 6;
@@ -257,7 +259,10 @@ TEST(disjoint_lanes_are_the_loop) {
 /// The lanes at widths other than 3: splices below the frontier, routing
 /// stopped where a subtree that is one leaf would splice into a top node.
 template <int W> void lanes_at_width(unsigned seed) {
-  for (int round = 0; round < 3; ++round) {
+  // (Scaled-down runs: rounds 0 and 2, split thresholds 1 and 7, the second
+  // with a depth limit; round 1 starts from a constructed tree, as the odd
+  // rounds of disjoint_lanes_are_the_loop do.)
+  for (int round = 0; round < 3; round += scale() >= 1 ? 1 : 2) {
     const std::string where =
         "width " + std::to_string(W) + " BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
     Maker make(seed + unsigned(round));
@@ -466,7 +471,8 @@ TEST(disjoint_rethrows_a_copy_in_the_lanes_and_holds_the_prefix) {
   const unsigned seed = base_seed() + 660;
   Maker make(seed);
   std::vector<fragile::OnceFragile> c;
-  for (const Disk &d : make.scene<Disk>(16000, 0.5)) c.push_back(fragile::OnceFragile(d, int(c.size())));
+  // (16,000 candidates; scaled-down runs at least 2,000, still past the lanes' minimum.)
+  for (const Disk &d : make.scene<Disk>(lanes_scaled(16000), 0.5)) c.push_back(fragile::OnceFragile(d, int(c.size())));
   std::vector<std::size_t> kept;
   {
     BVH<fragile::OnceFragile> loop(4);
@@ -477,7 +483,7 @@ TEST(disjoint_rethrows_a_copy_in_the_lanes_and_holds_the_prefix) {
       }
   }
   for (int round = 0; round < 4; ++round) {
-    // A kept candidate well past the first 4,096 kept: inserted by a lane.
+    // A kept candidate well past the first BVH_DISJOINT_LANES_MIN kept: inserted by a lane.
     const std::size_t victim = kept[kept.size() / 2 + std::size_t(make.rng() % (kept.size() / 3))];
     for (unsigned threads : {2u, 3u, 8u}) {
       note("BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round) + " threads " +
