@@ -550,6 +550,10 @@ template <int W> struct CountCut {
   }
 };
 
+/// Scenes smaller than this are built without threads, and ranges smaller
+/// than this are not split between threads.
+constexpr std::size_t kParallelMin = std::size_t(1) << 16;
+
 /// Calls f(0) ... f(count - 1), spread over `threads` threads (the caller
 /// is one of them). If a thread cannot be started, the others do its share;
 /// the first exception thrown by f is rethrown once all have finished.
@@ -720,9 +724,10 @@ constexpr int kMinWidth = 2, kMaxWidth = 8;
 /// Bits 0 .. w - 1: one per child.
 constexpr unsigned child_bits(int w) { return (1u << w) - 1; }
 
-/// Where a leaf's shapes are: a slot of the leaf store (its class, i.e. a
-/// capacity of LeafPool's capacity_of(cls), and its index in that class) and how many shapes
-/// it holds. A leaf that owns no slot has cls == kNoSlot.
+/// Where a leaf's shapes are: a slot of the leaf store (its class, whose
+/// capacity is LeafPool's capacity_of(cls), and its index in that class)
+/// and how many shapes it holds. A leaf that owns no slot has cls ==
+/// kNoSlot.
 struct LeafSlot {
   static constexpr std::uint32_t kNoSlot = ~std::uint32_t(0);
   std::uint32_t index = 0;
@@ -1124,10 +1129,11 @@ template <int W, class F> void for_each_postorder(const NodeStore<W> &nodes, int
 /// The leaves' shapes: each leaf owns one slot, a contiguous run of shapes.
 /// Slot capacities are 1, 2, 4, ..., 8, then 8 steps from each power of
 /// two to the next (capacity_of()), so that a slot of more than 4 holds at
-/// most one eighth more places than shapes, with one pool per capacity (a "class"):
-/// leaves grow one shape at a time, and with powers of two alone a leaf of
-/// 17 shapes would take 32 places. A pool stores its slots in fixed blocks, so growing never moves
-/// what is stored and there is no allocation per leaf; a bulk build's
+/// most one eighth more places than shapes: leaves grow one shape at a
+/// time, and with powers of two alone a leaf of 17 shapes would take 32
+/// places. There is one pool per capacity (a "class"); a pool stores its
+/// slots in fixed blocks, so growing never moves what is stored and there
+/// is no allocation per leaf; a bulk build's
 /// leaves of one class lie side by side in leaf order. Only a slot's first
 /// size() elements are constructed, so T needs no default constructor.
 /// Beside each shape the pool keeps its id (the tree's handle for it),
@@ -1460,7 +1466,6 @@ private:
     }
   };
 
-public:
   /// The slots of class cls a lane takes at a time, and keeps when it
   /// gives slots back: fewer of the larger, since what a lane keeps is
   /// slack.
@@ -1473,6 +1478,8 @@ public:
     while (n >> (b + 1)) ++b;
     return b;
   }
+
+public:
   /// Steps a class's capacity takes from one power of two to the next
   /// (kSteps = 2^kStepBits).
   static constexpr std::uint32_t kStepBits = 3;
@@ -2152,7 +2159,7 @@ public:
           if (right) self(self, mid, g1, longer_axis(cut[mid], cut[g1], on));
           else self(self, g0, mid, longer_axis(cut[g0], cut[mid], on));
         };
-        if (threads_ > 1 && cut[g1] - cut[g0] >= kParallelHalving) {
+        if (threads_ > 1 && cut[g1] - cut[g0] >= kParallelMin) {
           parallel_for(2, 2, half);
         } else {
           half(0);
@@ -2181,8 +2188,6 @@ private:
     if (x1 - x0 == y1 - y0) return ties;
     return x1 - x0 > y1 - y0 ? 0 : 1;
   }
-  /// Ranges from which halving runs its two halves on two threads.
-  static constexpr std::size_t kParallelHalving = std::size_t(1) << 16;
   const Tr &traits_;
   std::vector<Item<T, Tr>> &items_;
   const std::vector<Tagged<T>> *src_;
@@ -2732,9 +2737,6 @@ template <class T, class Tr, int W> int rebuild(Core<T, Tr, W> &core, int at, Cu
   replace_by(core, at, fresh);
   return fresh;
 }
-
-/// Scenes smaller than this are built without threads.
-constexpr std::size_t kParallelMin = std::size_t(1) << 16;
 
 /// The threads a build may use: `wanted`, or with 0 the hardware's.
 inline unsigned threads_for(unsigned wanted) {
