@@ -1051,6 +1051,17 @@ template <int W> inline void child_masks(const Node<W> &node, const Probe &p, un
 constexpr unsigned kFirst = 8u, kStop = 1u << 16;
 static_assert(kMaxWidth <= int(kFirst), "the 'first' bits sit above the child bits");
 
+/// Pushes child c of `node` for each bit c of `bits`, highest first (so
+/// that they pop left to right): one step a set bit, not one a child.
+template <int W> BVH_ALWAYS_INLINE void push_bits(IndexStack &stack, const Node<W> &node, unsigned bits) {
+#if defined(__GNUC__)
+  for (; bits != 0; bits &= ~(1u << (31 - __builtin_clz(bits)))) stack.push(node.child(31 - __builtin_clz(bits)));
+#else
+  for (int c = W - 1; c >= 0; --c)
+    if (bits >> c & 1u) stack.push(node.child(c));
+#endif
+}
+
 /// Pushes the children `enter` names (walk()'s visit result) so that they
 /// pop in order: the "first" group, then the rest, each left to right.
 template <int W> BVH_ALWAYS_INLINE void push_children(IndexStack &stack, const Node<W> &node, unsigned enter) {
@@ -1063,10 +1074,8 @@ template <int W> BVH_ALWAYS_INLINE void push_children(IndexStack &stack, const N
     if (first & 2u) stack.push(node.child(1));
     if (first & 1u) stack.push(node.child(0));
   } else {
-    for (int c = W - 1; c >= 0; --c)
-      if (later >> c & 1u) stack.push(node.child(c));
-    for (int c = W - 1; c >= 0; --c)
-      if (first >> c & 1u) stack.push(node.child(c));
+    push_bits(stack, node, later);
+    push_bits(stack, node, first);
   }
 }
 
@@ -2818,19 +2827,39 @@ template <class T, class Tr, int W> void construct(Core<T, Tr, W> &core, const s
 /// kept in the parent, so the choice reads one cache line; areas are
 /// computed in double from those floats.
 template <int W> inline int choose_child(const Node<W> &node, const Box &box) {
-  const double bx0 = box.x0, by0 = box.y0, bx1 = box.x1, by1 = box.y1;
-  int best = 0;
-  double best_growth = 0, best_area = 0;
-  for (int c = 0; c < node.num_children; ++c) {
+  double growth[W + W % 2], area[W + W % 2]; // (even: the passes below take two)
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+  // Two children a pass, in double: the same operations as the scalar
+  // path, so the same choice. _mm_max_pd(b, x) is std::max(x, b) and
+  // _mm_min_pd(b, x) is std::min(x, b), NaNs included. At odd widths the
+  // last pass reads one float past the row, inside the node; its lane is
+  // never chosen (c < num_children below).
+  const __m128d bx0 = _mm_set1_pd(box.x0), by0 = _mm_set1_pd(box.y0), bx1 = _mm_set1_pd(box.x1), by1 = _mm_set1_pd(box.y1);
+  auto two = [](const float *f) { return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i *>(f)))); };
+  for (int g = 0; g < W; g += 2) {
+    const __m128d x0 = two(node.lo_x + g), y0 = two(node.lo_y + g), x1 = two(node.hi_x + g), y1 = two(node.hi_y + g);
+    const __m128d a = _mm_mul_pd(_mm_sub_pd(x1, x0), _mm_sub_pd(y1, y0));
+    const __m128d grown = _mm_mul_pd(_mm_sub_pd(_mm_max_pd(bx1, x1), _mm_min_pd(bx0, x0)),
+                                     _mm_sub_pd(_mm_max_pd(by1, y1), _mm_min_pd(by0, y0)));
+    _mm_storeu_pd(area + g, a);
+    _mm_storeu_pd(growth + g, _mm_sub_pd(grown, a));
+  }
+#else
+  for (int c = 0; c < W; ++c) {
     const double x0 = node.lo_x[c], y0 = node.lo_y[c], x1 = node.hi_x[c], y1 = node.hi_y[c];
-    const double area = (x1 - x0) * (y1 - y0);
-    const double grown = (std::max(x1, bx1) - std::min(x0, bx0)) * (std::max(y1, by1) - std::min(y0, by0));
-    const double growth = grown - area;
-    if (c == 0 || growth < best_growth || (growth == best_growth && area < best_area)) {
-      best = c;
-      best_growth = growth;
-      best_area = area;
-    }
+    area[c] = (x1 - x0) * (y1 - y0);
+    growth[c] = (std::max(x1, box.x1) - std::min(x0, box.x0)) * (std::max(y1, box.y1) - std::min(y0, box.y0)) - area[c];
+  }
+#endif
+  // Branch-free: which child wins is data, and mispredicts cost more
+  // than the selects.
+  int best = 0;
+  double best_growth = growth[0], best_area = area[0];
+  for (int c = 1; c < node.num_children; ++c) {
+    const bool better = growth[c] < best_growth || (growth[c] == best_growth && area[c] < best_area);
+    best = better ? c : best;
+    best_growth = better ? growth[c] : best_growth;
+    best_area = better ? area[c] : best_area;
   }
   return node.child(best);
 }
