@@ -718,6 +718,45 @@ std::string table(const Report &r) {
   return t.str();
 }
 
+/// The node-width goals (issue 19) of W1, W2 and W3: the fastest row of
+/// ours on one thread (any width and split_threshold) against the fastest
+/// peer (W1, W2: <= 0.5; W3, whose Boost trees are packed: <= 0.7) and,
+/// for W1 and W2, the grid (<= 2).
+std::string width_goals(const Report &r) {
+  std::ostringstream t;
+  std::vector<std::string> workloads;
+  for (const Row &row : r.rows)
+    if (std::find(workloads.begin(), workloads.end(), row.workload) == workloads.end()) workloads.push_back(row.workload);
+  for (const std::string &w : workloads) {
+    const bool bulk = w.compare(0, 2, "W3") == 0;
+    if (!bulk && w.compare(0, 2, "W1") != 0 && w.compare(0, 2, "W2") != 0) continue;
+    const Row *ours = nullptr, *peer = nullptr, *grid = nullptr;
+    for (const Row &row : r.rows) {
+      if (row.workload != w || !row.note.empty() || row.times.empty()) continue;
+      const std::string &m = row.method;
+      const bool is_ours = m.compare(0, 4, "ours") == 0 && m.compare(0, 8, "ours-par") != 0;
+      const bool is_peer = m.compare(0, 5, "boost") == 0 || m == "box2d";
+      if (is_ours && (!ours || row.med() < ours->med())) ours = &row;
+      if (is_peer && (!peer || row.med() < peer->med())) peer = &row;
+      if (m == "grid") grid = &row;
+    }
+    if (!ours) continue;
+    t << "Goals, " << w.substr(0, 2) << " (node width, issue 19): best of ours is " << ours->label;
+    const double limit = bulk ? 0.7 : 0.5;
+    if (peer) {
+      const double x = ours->med() / peer->med();
+      t << "; / " << peer->label << " " << fmt("%.2f", x) << " (<= " << fmt("%.1f", limit) << ": "
+        << (x <= limit ? "met" : "not met") << ")";
+    }
+    if (grid) {
+      const double x = ours->med() / grid->med();
+      t << "; / grid " << fmt("%.2f", x) << " (<= 2: " << (x <= 2 ? "met" : "not met") << ")";
+    }
+    t << "\n";
+  }
+  return t.str();
+}
+
 // ---------------------------------------------------------------------------
 // The workloads.
 
@@ -1300,7 +1339,7 @@ int main(int argc, char **argv) {
           "(W3: probes that collide). Box2D fattens every box by b2_aabbExtension = 0.1 (reported as is).\n"
           "The sweep is W1's scene cut to its first n candidates; its 1M point is W1.\n";
   for (const std::string &n : rep.notes) text << n << "\n";
-  text << "\n" << table(rep) << "\n" << rep.extra.str();
+  text << "\n" << table(rep) << "\n" << width_goals(rep) << rep.extra.str();
   if (rep.mismatch) text << "\nERROR: some method did not keep exactly the same shapes as ours (see MISMATCH/FAILED)\n";
   const double total = seconds_since(start);
   text << "\nbench: total " << fmt("%.1f", total) << " s (generation and loading included)\n";
