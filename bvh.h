@@ -3359,10 +3359,28 @@ template <class P> struct PointMetric {
   template <int W> double box_key(const Node<W> &node, int c) const {
     return box_key(Box{node.lo_x[c], node.lo_y[c], node.hi_x[c], node.hi_y[c]});
   }
+  /// box_key(node, c) of every child c < W, into key[] (W rounded up to
+  /// even); lanes past num_children are garbage.
+  template <int W> void box_keys(const Node<W> &node, double *key) const {
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+    // Two children a pass, in double, as box_key: _mm_max_pd(b, a) is
+    // std::max(a, b), NaNs included, so the keys are the same bits.
+    const __m128d px = _mm_set1_pd(double(p.x)), py = _mm_set1_pd(double(p.y)), zero = _mm_setzero_pd();
+    auto two = [](const float *f) { return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i *>(f)))); };
+    for (int g = 0; g < W; g += 2) {
+      const __m128d dx = _mm_max_pd(_mm_sub_pd(px, two(node.hi_x + g)), _mm_max_pd(zero, _mm_sub_pd(two(node.lo_x + g), px)));
+      const __m128d dy = _mm_max_pd(_mm_sub_pd(py, two(node.hi_y + g)), _mm_max_pd(zero, _mm_sub_pd(two(node.lo_y + g), py)));
+      _mm_storeu_pd(key + g, _mm_add_pd(_mm_mul_pd(dx, dx), _mm_mul_pd(dy, dy)));
+    }
+#else
+    for (int c = 0; c < W; ++c) key[c] = box_key(node, c);
+#endif
+  }
   double box_key(const Box &b) const {
     const double px = p.x, py = p.y;
-    const double dx = std::max({b.x0 - px, 0.0, px - b.x1});
-    const double dy = std::max({b.y0 - py, 0.0, py - b.y1});
+    // (std::max of a list runs a loop: two calls, the same result)
+    const double dx = std::max(std::max(b.x0 - px, 0.0), px - b.x1);
+    const double dy = std::max(std::max(b.y0 - py, 0.0), py - b.y1);
     return dx * dx + dy * dy;
   }
   template <class T> double shape_key(const T &s) const { return distance(p, s); }
@@ -3376,6 +3394,10 @@ template <class P> struct RayMetric {
   const P &origin, &direction;
   template <int W> double box_key(const Node<W> &node, int c) const {
     return box_key(Box{node.lo_x[c], node.lo_y[c], node.hi_x[c], node.hi_y[c]});
+  }
+  /// box_key(node, c) of every child c < num_children, into key[].
+  template <int W> void box_keys(const Node<W> &node, double *key) const {
+    for (int c = 0; c < node.num_children; ++c) key[c] = box_key(node, c);
   }
   double box_key(const Box &b) const { return b.ray_entry(origin.x, origin.y, direction.x, direction.y); }
   template <class T> double shape_key(const T &s) const { return ray_hit(origin, direction, s); }
@@ -3398,10 +3420,11 @@ void best_first(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k,
     // The ids only once a shape is near enough to need its tie-break.
     const Span<const T> v = core.leaves.shapes(node);
     const std::uint32_t *ids = nullptr;
+    double limit = bound(); // (it changes only when `found` does)
     for (std::size_t i = 0; i < v.size(); ++i) {
       // (once k are found, a shape whose box is beyond the k-th needs no
       // exact key: the box costs a few compares, the key a square root)
-      if (found.size() == k && metric.box_key(box_of(core.traits, v[i])) > bound()) continue;
+      if (found.size() == k && metric.box_key(box_of(core.traits, v[i])) > limit) continue;
       const double d = metric.shape_key(v[i]);
       if (!(d < inf) || (found.size() == k && d > found.front().key)) continue;
       if (!ids) ids = core.leaves.ids(node);
@@ -3414,6 +3437,7 @@ void best_first(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k,
         found.back() = f;
         std::push_heap(found.begin(), found.end());
       }
+      limit = bound();
     }
   };
   // First a dive along the nearest boxes to one leaf: its shapes bound
@@ -3423,41 +3447,49 @@ void best_first(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k,
   int dive = k <= std::size_t(core.split_threshold) ? core.root : -1;
   while (dive >= 0 && !core.nodes.node(dive).is_leaf()) {
     const Node<W> &node = core.nodes.node(dive);
-    double least = inf;
+    double least = inf, key[W + W % 2];
     int next = -1;
-    for (int c = 0; c < node.num_children; ++c) {
-      const double key = metric.box_key(node, c);
-      if (key < least) least = key, next = node.child(c);
-    }
+    metric.box_keys(node, key);
+    for (int c = 0; c < node.num_children; ++c)
+      if (key[c] < least) least = key[c], next = node.child(c);
     if (next < 0) break; // (no child has a finite key)
     dive = next;
   }
   if (dive >= 0 && core.nodes.node(dive).is_leaf()) visit_leaf(core.nodes.node(dive));
   else dive = -1;
-  using Entry = std::pair<double, int>; // (box key, node)
+  // (a trivial struct, not a std::pair: the heap's inline room is then
+  // left uninitialised, not zeroed on every query)
+  struct Entry {
+    double key;
+    int node;
+  };
+  // std::greater<std::pair<double, int>>, NaN keys included: a min-heap.
+  const auto later = [](const Entry &a, const Entry &b) { return b.key < a.key || (!(a.key < b.key) && b.node < a.node); };
   InlineVector<Entry, 128> heap;
-  heap.push_back({0.0, core.root});
+  heap.push_back(Entry{0.0, core.root});
   while (!heap.empty()) {
-    std::pop_heap(heap.begin(), heap.end(), std::greater<Entry>());
+    std::pop_heap(heap.begin(), heap.end(), later);
     const Entry e = heap.back();
     heap.pop_back();
-    if (e.first > bound()) break;
-    const Node<W> &node = core.nodes.node(e.second);
+    if (e.key > bound()) break;
+    const Node<W> &node = core.nodes.node(e.node);
     if (node.is_leaf()) {
-      if (e.second != dive) visit_leaf(node); // (the dive's leaf is done)
+      if (e.node != dive) visit_leaf(node); // (the dive's leaf is done)
       continue;
     }
     const double limit = bound();
+    double keys[W + W % 2];
+    metric.box_keys(node, keys);
     for (int c = 0; c < node.num_children; ++c) {
-      const double key = metric.box_key(node, c);
+      const double key = keys[c];
       if (key > limit || key == inf) continue;
 #if defined(__GNUC__)
       // Best-first reaches most pushed nodes soon, but only after the
       // heap reorders: fetching them now hides the miss behind that work.
       __builtin_prefetch(&core.nodes.node(node.child(c)));
 #endif
-      heap.push_back({key, node.child(c)});
-      std::push_heap(heap.begin(), heap.end(), std::greater<Entry>());
+      heap.push_back(Entry{key, node.child(c)});
+      std::push_heap(heap.begin(), heap.end(), later);
     }
   }
   std::sort_heap(found.begin(), found.end());
