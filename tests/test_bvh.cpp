@@ -532,6 +532,46 @@ TEST(block_vector_behaves_like_a_vector) {
   CHECK(same);
 }
 
+// select_nth (the wide builds' selection) against the definition of
+// nth_element's result, on random, sorted, reversed, organ-pipe and
+// few-valued keys (ties: a strict weak order), at sizes around its
+// switch to std::nth_element, every k in turn on one of them.
+TEST(select_nth_gives_nth_elements_result) {
+  const unsigned seed = base_seed() + 11;
+  note("seed " + std::to_string(seed));
+  std::mt19937 rng(seed);
+  int wrong = 0, cases = 0;
+  const std::size_t sizes[] = {0, 1, 2, 599, 600, 601, 602, 1000, 4096, 20000, std::size_t(scaled(200000))};
+  for (const std::size_t n : sizes)
+    for (int kind = 0; kind < 5; ++kind) {
+      std::vector<std::pair<int, int>> v(n); // (key, tag): compared by key only
+      for (std::size_t i = 0; i < n; ++i) {
+        const int key = kind == 0 ? int(rng() % 1000000) : kind == 1 ? int(i) : kind == 2 ? -int(i)
+                        : kind == 3 ? std::min(int(i), int(n - i)) : int(rng() % 5);
+        v[i] = {key, int(i)};
+      }
+      std::vector<std::pair<int, int>> sorted = v;
+      std::sort(sorted.begin(), sorted.end());
+      auto less = [](const std::pair<int, int> &a, const std::pair<int, int> &b) { return a.first < b.first; };
+      const std::size_t picks = n <= 1000 && kind == 0 ? n : 4;
+      for (std::size_t p = 0; p < picks && n > 0; ++p) {
+        const std::size_t k = picks == n ? p : std::size_t(rng() % n);
+        std::vector<std::pair<int, int>> w = v;
+        bvh::detail::select_nth(w.begin(), w.begin() + long(k), w.end(), less);
+        bool ok = w[k].first == sorted[k].first;
+        for (std::size_t i = 0; i < k && ok; ++i) ok = w[i].first <= w[k].first;
+        for (std::size_t i = k + 1; i < n && ok; ++i) ok = w[k].first <= w[i].first;
+        std::vector<std::pair<int, int>> again = w; // a permutation of the input
+        std::sort(again.begin(), again.end());
+        ok = ok && again == sorted;
+        if (!ok && ++wrong <= 3) note("seed " + std::to_string(seed) + ": n " + std::to_string(n) + " kind " + std::to_string(kind) + " k " + std::to_string(k));
+        ++cases;
+      }
+    }
+  CHECK(cases > 50);
+  CHECK_EQ(wrong, 0);
+}
+
 int main(int argc, char **argv) {
   std::cout << "seed " << base_seed() << " (set BVH_SEED to change), scale " << scale() << std::endl;
   return run_all_tests(argc, argv);
