@@ -238,6 +238,17 @@ inline int disk_gap(const Point &p, const Point &q, double r1, double r2) {
   return sign != 0 ? sign : disk_gap_exact(p, q, r1, r2);
 }
 
+/// disk_gap(p, q, r1, r2) >= 0, with the common answer (far apart) first:
+/// one compare, where the sign takes two and a select.
+inline bool disks_meet(const Point &p, const Point &q, double r1, double r2) {
+  const double s = r1 + r2, dx = p.x - q.x, dy = p.y - q.y;
+  const double ss = s * s, dd = dx * dx + dy * dy;
+  const double gap = ss - dd, bound = kDiskGapBound * (ss + dd);
+  if (gap < -bound) return false;
+  if (gap > bound) return true;
+  return disk_gap_exact(p, q, r1, r2) >= 0;
+}
+
 /// Sign of r^2 |b - a|^2 - cross(b - a, c - a)^2: >= 0 when the line through
 /// a and b passes within r of c.
 inline int line_gap(const Point &a, const Point &b, const Point &c, double r) {
@@ -373,7 +384,7 @@ template <int N, int M> bool polygons_meet(const Polygon<N> &P, const Polygon<M>
 
 /// True when the closed disks meet (tangent disks do).
 inline bool intersect(const Disk &a, const Disk &b) {
-  return exact::detail::disk_gap(a.getCenter(), b.getCenter(), a.getRadius(), b.getRadius()) >= 0;
+  return exact::detail::disks_meet(a.getCenter(), b.getCenter(), a.getRadius(), b.getRadius());
 }
 
 /// True when the closed triangles meet (a shared vertex or edge point counts).
