@@ -483,14 +483,14 @@ valgrind_layer() {
     return
   fi
   local VG=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=all --show-leak-kinds=all)
-  BVH_TEST_SCALE=0.05 run_suite valgrind_test_bvh "${VG[@]}" "$BUILD/test_units" bvh
+  BVH_TEST_SCALE=0.03 run_suite valgrind_test_bvh "${VG[@]}" "$BUILD/test_units" bvh
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_threads "${VG[@]}" "$BUILD/test_units" threads
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_units" intersect
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_units" dynamic
   BVH_TEST_SCALE=0.25 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_units" moving
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lazy_handles"
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_units" parse
-  BVH_TEST_SCALE=0.1 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_disjoint"
+  BVH_TEST_SCALE=0.05 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_disjoint"
   # (nouserintercepts: the test's own operator new, which injects the faults, stays in place)
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_exceptions "${VG[@]}" --soname-synonyms=somalloc=nouserintercepts \
     "$BUILD/test_exceptions"
