@@ -31,7 +31,7 @@ export CXX COURSE_DATA BUILD JOBS
 # Arguments: none (every layer: make test), --quick (make check: bvh.out and
 # the unit tests at -O1, then the unit and golden layers), or layer names
 # (the full build, then only those layers: tests/run.sh valgrind golden).
-ALL_LAYERS="fuzz valgrind sanitizers cmake course_framework golden python_model unit portable cli_errors cli_output demo examples asserts tsan browser"
+ALL_LAYERS="fuzz valgrind sanitizers cmake course_framework golden python_model unit portable cli_errors cli_output cli_threads demo examples asserts tsan browser"
 QUICK=no
 ONLY=()
 for a in "$@"; do
@@ -153,9 +153,10 @@ layers_running() {
   for ((i = 0; i < ${#LAYERS[@]}; i++)); do [ -f "$RESULTS/$i.done" ] || n=$((n + 1)); done
   echo $n
 }
-# One second of waiting: print what has ended, and the heartbeat when due.
+# A fifth of a second of waiting (a layer starts that soon after a slot
+# frees): print what has ended, and the heartbeat when due.
 tick() {
-  sleep 1
+  sleep 0.2
   print_done_layers
   if [ $((SECONDS - LAST_LINE)) -ge "$HEARTBEAT" ]; then
     echo "   ... still running: $(running_layers)"
@@ -604,7 +605,7 @@ rm -f "$RESULTS/first-built"
 make_pid=$!
 last=$SECONDS
 while kill -0 "$make_pid" 2>/dev/null; do
-  sleep 1
+  sleep 0.2
   if [ "$VALGRIND_EARLY" = no ] && [ -f "$RESULTS/first-built" ]; then
     VALGRIND_EARLY=yes
     echo "   (the unit suites and bvh.out are built: valgrind starts beside the rest of the build, $((SECONDS - build_start)) s)"
