@@ -230,15 +230,15 @@ unit_tests_quick() {
 sanitizers() {
   local s=_sanitized
   [ "$HAVE_LIBCXX" = yes ] && s=_sanitized_libcxx
-  BVH_TEST_SCALE=0.1 run_suite test_bvh$s "$BUILD/test_units_san" bvh
+  BVH_TEST_SCALE=0.05 run_suite test_bvh$s "$BUILD/test_units_san" bvh
   BVH_TEST_SCALE=0.3 run_suite test_threads$s "$BUILD/test_units_san" threads
   BVH_TEST_SCALE=0.1 run_suite test_intersect$s "$BUILD/test_units_san" intersect
   BVH_TEST_SCALE=0.2 run_suite test_dynamic$s "$BUILD/test_units_san" dynamic
-  BVH_TEST_SCALE=0.2 run_suite test_moving$s "$BUILD/test_units_san" moving
-  BVH_TEST_SCALE=0.1 run_suite test_lazy_handles$s "$BUILD/test_lazy_handles_san"
+  BVH_TEST_SCALE=0.1 run_suite test_moving$s "$BUILD/test_units_san" moving
+  BVH_TEST_SCALE=0.05 run_suite test_lazy_handles$s "$BUILD/test_lazy_handles_san"
   BVH_TEST_SCALE=0.1 run_suite test_parse$s "$BUILD/test_units_san" parse
   run_suite test_names$s "$BUILD/test_names_san"
-  BVH_TEST_SCALE=0.1 run_suite test_disjoint$s "$BUILD/test_disjoint_san"
+  BVH_TEST_SCALE=0.05 run_suite test_disjoint$s "$BUILD/test_disjoint_san"
   BVH_TEST_SCALE=0.2 run_suite test_exceptions$s "$BUILD/test_exceptions_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
@@ -298,7 +298,7 @@ asserts() {
 tsan() {
   BVH_TEST_SCALE=0.25 run_suite test_threads_under_thread_sanitizer "$BUILD/test_threads_tsan"
   BVH_TEST_SCALE=0.1 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_disjoint_tsan"
-  BVH_TEST_SCALE=0.1 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lazy_handles_tsan"
+  BVH_TEST_SCALE=0.05 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lazy_handles_tsan"
 }
 
 # bvh.h alone in the course's framework (stand-ins written from the spec),
