@@ -488,7 +488,7 @@ valgrind_layer() {
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_threads "${VG[@]}" "$BUILD/test_units" threads
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_units" intersect
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_units" dynamic
-  BVH_TEST_SCALE=0.25 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_units" moving
+  BVH_TEST_SCALE=0.15 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_units" moving
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lazy_handles"
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_units" parse
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_disjoint"
