@@ -24,8 +24,9 @@ UNITY_SOURCES := tests/units.cpp $(UNITY:%=tests/test_%.cpp) tests/check.h tests
 TESTS := $(BUILD)/test_units $(SOLO:%=$(BUILD)/test_%)
 # Every unit test and the CLI under AddressSanitizer + UBSan, compiled by
 # SAN_CXX. (-g1: the line tables, for the reports' file:line; full -g takes
-# a fifth longer to compile. The ThreadSanitizer builds and the fuzzer too.) make test (tests/run.sh) sets SAN_CXX='clang++ -stdlib=libc++'
-# when clang++ and libc++ are installed: these builds are then also the
+# a fifth longer to compile. The ThreadSanitizer builds and the fuzzer too.)
+# make test (tests/run.sh) sets SAN_CXX='clang++ -stdlib=libc++' when
+# clang++ and libc++ are installed: these builds are then also the
 # portable build with clang++ and libc++ (as on macOS; test_parse there takes
 # the reader's fallback for a missing floating-point from_chars), and clang++
 # compiles them in about half g++'s time.

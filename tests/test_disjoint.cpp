@@ -52,7 +52,7 @@ template <> const char *kind_name<Shape>() { return "mixed shapes"; }
 
 /// Thread counts the cases compare with the loop (scaled-down runs: fewer;
 /// under a tenth of the rounds, valgrind's run, where the threads take
-/// turns: three alone).
+/// turns, and AddressSanitizer's: three alone).
 std::vector<unsigned> thread_counts() {
   if (scale() >= 1) return {1, 2, 3, 8};
   if (scale() >= 0.1) return {2, 3};
