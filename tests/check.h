@@ -29,6 +29,7 @@ namespace check {
 struct Case {
   const char *name;
   void (*fn)();
+  const char *suite; // CHECK_SUITE where the case was written ("" in a suite's own build)
 };
 
 inline std::vector<Case> &registry() {
@@ -47,8 +48,16 @@ inline std::string &context() {
   return s;
 }
 
+/// The suite whose cases run_all_tests runs: "" (every case) in a suite's
+/// own build; tests/units.cpp, which compiles several suites into one
+/// program, names one.
+inline const char *&selected_suite() {
+  static const char *s = "";
+  return s;
+}
+
 struct Registrar {
-  Registrar(const char *name, void (*fn)()) { registry().push_back({name, fn}); }
+  Registrar(const char *name, void (*fn)(), const char *suite) { registry().push_back({name, fn, suite}); }
 };
 
 inline void fail(const char *file, int line, const std::string &what) {
@@ -72,11 +81,16 @@ template <class A, class B> std::string describe(const char *ea, const char *eb,
 /// Sets the context (seed, case number...) printed with later failures.
 inline void note(const std::string &s) { check::context() = s; }
 
+// The suite a TEST belongs to: tests/units.cpp defines it before each
+// suite it includes.
+#ifndef CHECK_SUITE
+#define CHECK_SUITE ""
+#endif
 #define CHECK_CAT2(a, b) a##b
 #define CHECK_CAT(a, b) CHECK_CAT2(a, b)
 #define TEST(name)                                                                   \
   static void test_##name();                                                         \
-  static check::Registrar CHECK_CAT(registrar_, name)(#name, &test_##name);          \
+  static check::Registrar CHECK_CAT(registrar_, name)(#name, &test_##name, CHECK_SUITE); \
   static void test_##name()
 
 #define CHECK(expr)                                                                  \
@@ -96,6 +110,7 @@ inline void note(const std::string &s) { check::context() = s; }
 inline int run_all_tests(int argc, char **argv) {
   int passed = 0, failed = 0;
   for (const check::Case &c : check::registry()) {
+    if (std::strcmp(c.suite, check::selected_suite()) != 0) continue;
     if (argc > 1) {
       bool wanted = false;
       for (int i = 1; i < argc; ++i) wanted = wanted || std::strcmp(argv[i], c.name) == 0;

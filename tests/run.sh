@@ -31,7 +31,7 @@ export CXX COURSE_DATA BUILD JOBS
 # Arguments: none (every layer: make test), --quick (make check: bvh.out and
 # the unit tests at -O1, then the unit and golden layers), or layer names
 # (the full build, then only those layers: tests/run.sh valgrind golden).
-ALL_LAYERS="fuzz valgrind sanitizers cmake course_framework golden python_model unit portable cli_errors cli_output demo examples asserts tsan browser"
+ALL_LAYERS="fuzz valgrind sanitizers cmake course_framework golden python_model unit portable cli_errors cli_output cli_threads demo examples asserts tsan browser"
 QUICK=no
 ONLY=()
 for a in "$@"; do
@@ -153,9 +153,10 @@ layers_running() {
   for ((i = 0; i < ${#LAYERS[@]}; i++)); do [ -f "$RESULTS/$i.done" ] || n=$((n + 1)); done
   echo $n
 }
-# One second of waiting: print what has ended, and the heartbeat when due.
+# A fifth of a second of waiting (a layer starts that soon after a slot
+# frees): print what has ended, and the heartbeat when due.
 tick() {
-  sleep 1
+  sleep 0.2
   print_done_layers
   if [ $((SECONDS - LAST_LINE)) -ge "$HEARTBEAT" ]; then
     echo "   ... still running: $(running_layers)"
@@ -189,13 +190,13 @@ finish_layers() {
 
 # Unit and model tests (tests/test_*.cpp, tests/check.h), default build.
 unit_tests() {
-  run_suite test_bvh "$BUILD/test_bvh"
-  run_suite test_threads "$BUILD/test_threads"
-  run_suite test_intersect "$BUILD/test_intersect"
-  run_suite test_dynamic "$BUILD/test_dynamic"
-  run_suite test_moving "$BUILD/test_moving"
+  run_suite test_bvh "$BUILD/test_units" bvh
+  run_suite test_threads "$BUILD/test_units" threads
+  run_suite test_intersect "$BUILD/test_units" intersect
+  run_suite test_dynamic "$BUILD/test_units" dynamic
+  run_suite test_moving "$BUILD/test_units" moving
   run_suite test_lazy_handles "$BUILD/test_lazy_handles"
-  run_suite test_parse "$BUILD/test_parse"
+  run_suite test_parse "$BUILD/test_units" parse
   run_suite test_names "$BUILD/test_names"
   run_suite test_disjoint "$BUILD/test_disjoint"
   # Fault injection: every mutating operation at its k-th copy and allocation (issue 21).
@@ -229,15 +230,15 @@ unit_tests_quick() {
 sanitizers() {
   local s=_sanitized
   [ "$HAVE_LIBCXX" = yes ] && s=_sanitized_libcxx
-  BVH_TEST_SCALE=0.1 run_suite test_bvh$s "$BUILD/test_bvh_san"
-  BVH_TEST_SCALE=0.3 run_suite test_threads$s "$BUILD/test_threads_san"
-  BVH_TEST_SCALE=0.1 run_suite test_intersect$s "$BUILD/test_intersect_san"
-  BVH_TEST_SCALE=0.2 run_suite test_dynamic$s "$BUILD/test_dynamic_san"
-  BVH_TEST_SCALE=0.2 run_suite test_moving$s "$BUILD/test_moving_san"
-  BVH_TEST_SCALE=0.1 run_suite test_lazy_handles$s "$BUILD/test_lazy_handles_san"
-  BVH_TEST_SCALE=0.1 run_suite test_parse$s "$BUILD/test_parse_san"
+  BVH_TEST_SCALE=0.05 run_suite test_bvh$s "$BUILD/test_units_san" bvh
+  BVH_TEST_SCALE=0.3 run_suite test_threads$s "$BUILD/test_units_san" threads
+  BVH_TEST_SCALE=0.1 run_suite test_intersect$s "$BUILD/test_units_san" intersect
+  BVH_TEST_SCALE=0.2 run_suite test_dynamic$s "$BUILD/test_units_san" dynamic
+  BVH_TEST_SCALE=0.1 run_suite test_moving$s "$BUILD/test_units_san" moving
+  BVH_TEST_SCALE=0.05 run_suite test_lazy_handles$s "$BUILD/test_lazy_handles_san"
+  BVH_TEST_SCALE=0.1 run_suite test_parse$s "$BUILD/test_units_san" parse
   run_suite test_names$s "$BUILD/test_names_san"
-  BVH_TEST_SCALE=0.1 run_suite test_disjoint$s "$BUILD/test_disjoint_san"
+  BVH_TEST_SCALE=0.05 run_suite test_disjoint$s "$BUILD/test_disjoint_san"
   BVH_TEST_SCALE=0.2 run_suite test_exceptions$s "$BUILD/test_exceptions_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
@@ -256,8 +257,8 @@ sanitizers() {
 portable() {
   local BVH_TEST_SCALE=0.3
   export BVH_TEST_SCALE
-  run_suite test_bvh_cxx20_no_simd "$BUILD/test_bvh_cxx20"
-  run_suite test_dynamic_cxx20_no_simd "$BUILD/test_dynamic_cxx20"
+  run_suite test_bvh_cxx20_no_simd "$BUILD/test_units_cxx20" bvh
+  run_suite test_dynamic_cxx20_no_simd "$BUILD/test_units_cxx20" dynamic
   if [ "$HAVE_LIBCXX" != yes ]; then
     skip "test_*_libcxx" "clang++ with libc++ is not installed (apt-get install clang libc++-dev libc++abi-dev): the sanitizer builds, which are also the libc++ build when it is there, used g++"
   fi
@@ -297,7 +298,7 @@ asserts() {
 tsan() {
   BVH_TEST_SCALE=0.25 run_suite test_threads_under_thread_sanitizer "$BUILD/test_threads_tsan"
   BVH_TEST_SCALE=0.1 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_disjoint_tsan"
-  BVH_TEST_SCALE=0.1 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lazy_handles_tsan"
+  BVH_TEST_SCALE=0.05 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lazy_handles_tsan"
 }
 
 # bvh.h alone in the course's framework (stand-ins written from the spec),
@@ -483,14 +484,14 @@ valgrind_layer() {
     return
   fi
   local VG=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=all --show-leak-kinds=all)
-  BVH_TEST_SCALE=0.05 run_suite valgrind_test_bvh "${VG[@]}" "$BUILD/test_bvh"
-  BVH_TEST_SCALE=0.05 run_suite valgrind_test_threads "${VG[@]}" "$BUILD/test_threads"
-  BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_intersect"
-  BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_dynamic"
-  BVH_TEST_SCALE=0.25 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_moving"
+  BVH_TEST_SCALE=0.03 run_suite valgrind_test_bvh "${VG[@]}" "$BUILD/test_units" bvh
+  BVH_TEST_SCALE=0.05 run_suite valgrind_test_threads "${VG[@]}" "$BUILD/test_units" threads
+  BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_units" intersect
+  BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_units" dynamic
+  BVH_TEST_SCALE=0.15 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_units" moving
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lazy_handles"
-  BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_parse"
-  BVH_TEST_SCALE=0.1 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_disjoint"
+  BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_units" parse
+  BVH_TEST_SCALE=0.05 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_disjoint"
   # (nouserintercepts: the test's own operator new, which injects the faults, stays in place)
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_exceptions "${VG[@]}" --soname-synonyms=somalloc=nouserintercepts \
     "$BUILD/test_exceptions"
@@ -575,6 +576,15 @@ compile_re="^($(printf '%s' "$CXX" | sed 's/[+.]/\\&/g')|g\+\+|clang\+\+) "
 # build then), else g++.
 if [ "$HAVE_LIBCXX" = yes ]; then SAN_CXX="clang++ -stdlib=libc++"; else SAN_CXX=$CXX; fi
 export SAN_CXX
+# The ThreadSanitizer builds: clang++ when it has ThreadSanitizer (it
+# compiles and runs them in about 60% of g++'s time), else g++.
+TSAN_CXX=$CXX
+if [ "$QUICK" = no ] && have clang++; then
+  echo 'int main() { return 0; }' | clang++ -fsanitize=thread -x c++ - -o "$BUILD/tsan-probe" >/dev/null 2>&1 &&
+    "$BUILD/tsan-probe" && TSAN_CXX=clang++
+  rm -f "$BUILD/tsan-probe"
+fi
+export TSAN_CXX
 todo=$($MAKE --no-print-directory -n -k "${first[@]}" "${targets[@]}" 2>/dev/null | grep -cE "$compile_re")
 echo "building: $MAKE -k -j$JOBS ${first[*]}${first[*]:+, then }${targets[*]}: $todo compiles to do (log: $LOGS/build.log)"
 build_start=$SECONDS
@@ -595,7 +605,7 @@ rm -f "$RESULTS/first-built"
 make_pid=$!
 last=$SECONDS
 while kill -0 "$make_pid" 2>/dev/null; do
-  sleep 1
+  sleep 0.2
   if [ "$VALGRIND_EARLY" = no ] && [ -f "$RESULTS/first-built" ]; then
     VALGRIND_EARLY=yes
     echo "   (the unit suites and bvh.out are built: valgrind starts beside the rest of the build, $((SECONDS - build_start)) s)"
