@@ -1005,6 +1005,14 @@ struct Probe {
 #endif
 };
 
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+/// f[0] and f[1] widened to two doubles: a node's row read two children
+/// at a time (choose_child, the nearest searches' bounds).
+inline __m128d two_floats(const float *f) {
+  return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i *>(f))));
+}
+#endif
+
 /// The node test. For inner node `node`: bit c of `hits` is set when child
 /// c's box meets the probe's box, bit c of `near` when it also holds the
 /// probe's centre (a hit there is likely, so collision() visits those
@@ -2872,6 +2880,21 @@ template <class T, class Tr, int W> void construct(Core<T, Tr, W> &core, const s
 // 6. Changes: the insertion strategy, erase, update, margins
 // ===========================================================================
 
+/// choose_child's pick among its first n children: least growth, ties to
+/// the smaller area, then the first. Branch-free: which child wins is
+/// data, and mispredicts cost more than the selects.
+template <class F> inline int least_growth(int n, const F *growth, const F *area) {
+  int best = 0;
+  F best_growth = growth[0], best_area = area[0];
+  for (int c = 1; c < n; ++c) {
+    const bool better = growth[c] < best_growth || (growth[c] == best_growth && area[c] < best_area);
+    best = better ? c : best;
+    best_growth = better ? growth[c] : best_growth;
+    best_area = better ? area[c] : best_area;
+  }
+  return best;
+}
+
 /// The insertion strategy, part 1: the child of inner node n whose box
 /// grows least in area when it takes `box`; ties go to the smaller child,
 /// then the first. Boxes are the children's float boxes (rounded outwards)
@@ -2896,15 +2919,7 @@ template <int W> inline int choose_child(const Node<W> &node, const Box &box) {
       _mm_storeu_ps(area + g, a);
       _mm_storeu_ps(growth + g, _mm_sub_ps(grown, a));
     }
-    int best = 0;
-    float best_growth = growth[0], best_area = area[0];
-    for (int c = 1; c < node.num_children; ++c) {
-      const bool better = growth[c] < best_growth || (growth[c] == best_growth && area[c] < best_area);
-      best = better ? c : best;
-      best_growth = better ? growth[c] : best_growth;
-      best_area = better ? area[c] : best_area;
-    }
-    return node.child(best);
+    return node.child(least_growth(node.num_children, growth, area));
   }
 #endif
   double growth[W + W % 2], area[W + W % 2]; // (even: the passes below take two)
@@ -2915,9 +2930,9 @@ template <int W> inline int choose_child(const Node<W> &node, const Box &box) {
   // last pass reads one float past the row, inside the node; its lane is
   // never chosen (c < num_children below).
   const __m128d bx0 = _mm_set1_pd(box.x0), by0 = _mm_set1_pd(box.y0), bx1 = _mm_set1_pd(box.x1), by1 = _mm_set1_pd(box.y1);
-  auto two = [](const float *f) { return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i *>(f)))); };
   for (int g = 0; g < W; g += 2) {
-    const __m128d x0 = two(node.lo_x + g), y0 = two(node.lo_y + g), x1 = two(node.hi_x + g), y1 = two(node.hi_y + g);
+    const __m128d x0 = two_floats(node.lo_x + g), y0 = two_floats(node.lo_y + g);
+    const __m128d x1 = two_floats(node.hi_x + g), y1 = two_floats(node.hi_y + g);
     const __m128d a = _mm_mul_pd(_mm_sub_pd(x1, x0), _mm_sub_pd(y1, y0));
     const __m128d grown = _mm_mul_pd(_mm_sub_pd(_mm_max_pd(bx1, x1), _mm_min_pd(bx0, x0)),
                                      _mm_sub_pd(_mm_max_pd(by1, y1), _mm_min_pd(by0, y0)));
@@ -2931,17 +2946,7 @@ template <int W> inline int choose_child(const Node<W> &node, const Box &box) {
     growth[c] = (std::max(x1, box.x1) - std::min(x0, box.x0)) * (std::max(y1, box.y1) - std::min(y0, box.y0)) - area[c];
   }
 #endif
-  // Branch-free: which child wins is data, and mispredicts cost more
-  // than the selects.
-  int best = 0;
-  double best_growth = growth[0], best_area = area[0];
-  for (int c = 1; c < node.num_children; ++c) {
-    const bool better = growth[c] < best_growth || (growth[c] == best_growth && area[c] < best_area);
-    best = better ? c : best;
-    best_growth = better ? growth[c] : best_growth;
-    best_area = better ? area[c] : best_area;
-  }
-  return node.child(best);
+  return node.child(least_growth(node.num_children, growth, area));
 }
 
 /// A child holding more than this share of its parent's shapes makes
@@ -3446,10 +3451,11 @@ template <class P> struct PointMetric {
     // Two children a pass, in double, as box_key: _mm_max_pd(b, a) is
     // std::max(a, b), NaNs included, so the keys are the same bits.
     const __m128d px = _mm_set1_pd(double(p.x)), py = _mm_set1_pd(double(p.y)), zero = _mm_setzero_pd();
-    auto two = [](const float *f) { return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i *>(f)))); };
     for (int g = 0; g < W; g += 2) {
-      const __m128d dx = _mm_max_pd(_mm_sub_pd(px, two(node.hi_x + g)), _mm_max_pd(zero, _mm_sub_pd(two(node.lo_x + g), px)));
-      const __m128d dy = _mm_max_pd(_mm_sub_pd(py, two(node.hi_y + g)), _mm_max_pd(zero, _mm_sub_pd(two(node.lo_y + g), py)));
+      const __m128d dx =
+          _mm_max_pd(_mm_sub_pd(px, two_floats(node.hi_x + g)), _mm_max_pd(zero, _mm_sub_pd(two_floats(node.lo_x + g), px)));
+      const __m128d dy =
+          _mm_max_pd(_mm_sub_pd(py, two_floats(node.hi_y + g)), _mm_max_pd(zero, _mm_sub_pd(two_floats(node.lo_y + g), py)));
       _mm_storeu_pd(key + g, _mm_add_pd(_mm_mul_pd(dx, dx), _mm_mul_pd(dy, dy)));
     }
 #else
