@@ -748,7 +748,10 @@ template <int W> struct Node {
   /// Leaf: where its shapes are.
   LeafSlot leaf() const { return LeafSlot{std::uint32_t(link_[0]), std::uint32_t(link_[1]), std::uint32_t(link_[2])}; }
   /// Makes the node a leaf whose shapes are at `s` (the leaf store's).
+  /// An inner node made a leaf has no summary.
   void set_leaf(const LeafSlot &s) {
+    if constexpr (kCoded > 0)
+      if (num_children != 0) link_[3] = 0;
     num_children = 0;
     link_[0] = std::int32_t(s.index);
     link_[1] = std::int32_t(s.cls);
@@ -757,13 +760,149 @@ template <int W> struct Node {
   /// Inner node: child c is node n (the builders').
   void set_child(int c, int n) { link_[c] = n; }
 
+  // A leaf's summary. A leaf does not use its children's box rows, so at
+  // widths 4 to 8 they hold its first shapes' boxes, each side quantized
+  // to 8 bits within a frame that the leaf stores too: collision() tests
+  // the probe against all of them in one SIMD pass and reads only the
+  // shapes whose code box meets it. Codes come from one map that never
+  // decreases (codes_of), so boxes that meet have code boxes that meet,
+  // also outside the frame, where codes are clamped (the frame sets the
+  // precision only). Queries use it only where shapes that intersect have
+  // boxes that meet, which the whole tree relies on.
+  // The first coded() shapes have right codes; the summary is in use when
+  // that is all of them. Appending keeps it; erase shifts it; every other
+  // change of a leaf's shapes sets coded() to 0 or recomputes it
+  // (summarize()). validate() checks every code.
+
+  /// Shapes a leaf's summary holds at most (0: no summary at this width).
+  static constexpr int kCoded = W >= 8 ? 4 * W : W >= 4 ? 4 * W - 4 : 0;
+  /// The frame of a summary: a side v's code is (v - origin) * scale,
+  /// clamped to 0..255 (codes_of).
+  struct Frame {
+    float ox = 0, oy = 0, sx = 0, sy = 0;
+  };
+  /// Leaf: how many of its first shapes have right codes.
+  int coded() const {
+    if constexpr (kCoded > 0) return link_[3] < 0 ? -(link_[3] + 1) : 0;
+    else return 0;
+  }
+  /// Leaf: its first k shapes have right codes (k <= kCoded).
+  void set_coded(int k) {
+    if constexpr (kCoded > 0) link_[3] = -(k + 1);
+    (void)k;
+  }
+  /// Leaf: code row r (0: low x, 1: low y, 2: high x, 3: high y), kCoded
+  /// bytes. (Byte access to the box rows, the node's first 16 W bytes.)
+  unsigned char *row(int r) { return reinterpret_cast<unsigned char *>(this) + r * kCoded; }
+  const unsigned char *row(int r) const { return reinterpret_cast<const unsigned char *>(this) + r * kCoded; }
+  /// Leaf: its summary's frame (in the free links at width 8, else after
+  /// the code rows).
+  Frame frame() const {
+    Frame f;
+    std::memcpy(&f, frame_bytes(), sizeof f);
+    return f;
+  }
+  void set_frame(const Frame &f) { std::memcpy(frame_bytes(), &f, sizeof f); }
+  /// The codes of box `b` in frame `f`, bytes 0 to 3 of the result: low x,
+  /// low y, high x, high y. A side's code is the integer part of t =
+  /// (float(v) - origin) * scale, in float, clamped to 0..255 (a NaN low
+  /// side: 0, a NaN high one: 255). *inside: no side was clamped. Every
+  /// code of a summary, and of every box tested against one, comes from
+  /// here: one map that never decreases, so that a <= b gives code(a) <=
+  /// code(b), and boxes that meet have code boxes that meet.
+  static BVH_ALWAYS_INLINE std::uint32_t codes_of(const Box &b, const Frame &f, bool *inside = nullptr) {
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+    const __m128 v = _mm_movelh_ps(_mm_cvtpd_ps(_mm_set_pd(b.y0, b.x0)), _mm_cvtpd_ps(_mm_set_pd(b.y1, b.x1)));
+    const __m128 t = _mm_mul_ps(_mm_sub_ps(v, _mm_set_ps(f.oy, f.ox, f.oy, f.ox)), _mm_set_ps(f.sy, f.sx, f.sy, f.sx));
+    const __m128 zero = _mm_setzero_ps(), top = _mm_set1_ps(255.f);
+    if (inside) *inside = _mm_movemask_ps(_mm_and_ps(_mm_cmpge_ps(t, zero), _mm_cmple_ps(t, top))) == 15;
+    // (max and min return their second operand when the first is NaN)
+    const __m128 lo = _mm_min_ps(_mm_max_ps(t, zero), top), hi = _mm_max_ps(_mm_min_ps(t, top), zero);
+    const __m128 c = _mm_shuffle_ps(lo, hi, _MM_SHUFFLE(3, 2, 1, 0));
+    __m128i k = _mm_cvttps_epi32(c);
+    k = _mm_packs_epi32(k, k);
+    return std::uint32_t(_mm_cvtsi128_si32(_mm_packus_epi16(k, k)));
+#else
+    const float v[4] = {float(b.x0), float(b.y0), float(b.x1), float(b.y1)};
+    const float o[4] = {f.ox, f.oy, f.ox, f.oy}, sc[4] = {f.sx, f.sy, f.sx, f.sy};
+    std::uint32_t codes = 0;
+    bool in = true;
+    for (int i = 0; i < 4; ++i) {
+      const float t = (v[i] - o[i]) * sc[i];
+      in = in && t >= 0 && t <= 255;
+      float c;
+      if (i < 2) c = t >= 0 ? (t <= 255 ? t : 255) : 0;
+      else c = t <= 255 ? (t >= 0 ? t : 0) : 255;
+      codes |= std::uint32_t(c) << (8 * i);
+    }
+    if (inside) *inside = in;
+    return codes;
+#endif
+  }
+  /// Leaf: shape i's code box is `codes` (codes_of()).
+  void set_codes(int i, std::uint32_t codes) {
+    for (int r = 0; r < 4; ++r) row(r)[i] = static_cast<unsigned char>(codes >> (8 * r));
+  }
+  /// Leaf: writes shape i's code box from its box `b`.
+  void code(int i, const Box &b) { set_codes(i, codes_of(b, frame())); }
+  /// Leaf: true when shape i's code box holds what code() makes of `b`.
+  bool code_holds(int i, const Box &b) const {
+    const std::uint32_t c = codes_of(b, frame());
+    return row(0)[i] <= (c & 255u) && row(1)[i] <= (c >> 8 & 255u) && row(2)[i] >= (c >> 16 & 255u) &&
+           row(3)[i] >= (c >> 24);
+  }
+  /// Leaf: shape i is gone and the ones after it moved down one place:
+  /// their codes move with them.
+  void uncode(int i) {
+    const int k = coded();
+    if (i >= k) return;
+    for (int r = 0; r < 4; ++r) std::memmove(row(r) + i, row(r) + i + 1, std::size_t(k - i - 1));
+    set_coded(k - 1);
+  }
+  /// Leaf with a summary in use (coded() == its count, n shapes): bit i
+  /// set when shape i's code box meets box `b`'s.
+  BVH_ALWAYS_INLINE std::uint32_t meets(const Box &b, int n) const {
+    const std::uint32_t c = codes_of(b, frame());
+    const std::uint32_t live = n >= 32 ? ~std::uint32_t(0) : (std::uint32_t(1) << n) - 1;
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+    // (a <= b for bytes: min(a, b) == a; lanes past the row are masked off)
+    const __m128i qx = _mm_set1_epi8(char(c & 255u)), qy = _mm_set1_epi8(char(c >> 8 & 255u));
+    const __m128i px = _mm_set1_epi8(char(c >> 16 & 255u)), py = _mm_set1_epi8(char(c >> 24));
+    std::uint32_t bits = 0;
+    for (int g = 0; g < n; g += 16) {
+      const auto load = [&](int r) { return _mm_loadu_si128(reinterpret_cast<const __m128i *>(row(r) + g)); };
+      const __m128i x0 = load(0), y0 = load(1), x1 = load(2), y1 = load(3);
+      const __m128i ok = _mm_and_si128(
+          _mm_and_si128(_mm_cmpeq_epi8(_mm_min_epu8(x0, px), x0), _mm_cmpeq_epi8(_mm_min_epu8(y0, py), y0)),
+          _mm_and_si128(_mm_cmpeq_epi8(_mm_max_epu8(x1, qx), x1), _mm_cmpeq_epi8(_mm_max_epu8(y1, qy), y1)));
+      bits |= std::uint32_t(_mm_movemask_epi8(ok)) << g;
+    }
+    return bits & live;
+#else
+    const unsigned lx = c & 255u, ly = c >> 8 & 255u, hx = c >> 16 & 255u, hy = c >> 24;
+    std::uint32_t bits = 0;
+    for (int i = 0; i < n; ++i)
+      bits |= std::uint32_t(row(0)[i] <= hx && row(1)[i] <= hy && lx <= row(2)[i] && ly <= row(3)[i]) << i;
+    return bits & live;
+#endif
+  }
+
   std::int32_t num_children = 0; // 0: a leaf
 
 private:
-  // An inner node's children, or a leaf's LeafSlot (index, class, count):
-  // a leaf's shapes are found from this line alone.
+  unsigned char *frame_bytes() {
+    if constexpr (W >= 8) return reinterpret_cast<unsigned char *>(link_ + 4);
+    else return row(4);
+  }
+  const unsigned char *frame_bytes() const { return const_cast<Node *>(this)->frame_bytes(); }
+  // An inner node's children, or a leaf's LeafSlot (index, class, count)
+  // and its summary's state (coded() in link_[3]): a leaf's shapes are
+  // found from this line alone.
   std::int32_t link_[W < 3 ? 3 : W] = {0, std::int32_t(LeafSlot::kNoSlot), 0};
 };
+static_assert(Node<4>::kCoded * 4 + 16 <= int(sizeof(float)) * 16 && Node<7>::kCoded * 4 + 16 <= int(sizeof(float)) * 28 &&
+                  Node<8>::kCoded * 4 <= int(sizeof(float)) * 32,
+              "a summary fits in a leaf's box rows");
 // (the fields are in this order so that a 4-lane load of a float row stays
 // inside the node: child_masks masks the extra lanes off)
 static_assert(sizeof(Node<kCourseWidth>) == 64, "a ternary Node is one 64-byte cache line");
@@ -1050,6 +1189,17 @@ template <int W> inline void child_masks(const Node<W> &node, const Probe &p, un
   }
   hits &= live;
   near &= hits;
+#endif
+}
+
+/// The index of the lowest set bit of `bits` (not 0).
+inline int lowest_bit(std::uint32_t bits) {
+#if defined(__GNUC__)
+  return __builtin_ctz(bits);
+#else
+  int i = 0;
+  while (!(bits >> i & 1u)) ++i;
+  return i;
 #endif
 }
 
@@ -1632,6 +1782,7 @@ public:
     BVH_INVARIANT(!leaf.leaf().has_slot(), "filling a leaf that owns a slot");
     typename LeafPool<T>::Slot s = pool_.allocate(count);
     leaf.set_leaf(record(s));
+    leaf.set_coded(0);
     pool_.append(s, count, take, id);
     if (built())
       for (std::size_t i = 0; i < count; ++i) loc_[id(i)] = Loc{n, std::uint32_t(i)};
@@ -1644,6 +1795,7 @@ public:
     const std::uint32_t id = pool_.ids(s)[i];
     pool_.erase(s, i);
     leaf.set_leaf(record(s));
+    leaf.uncode(int(i));
     if (built()) {
       const std::uint32_t *ids = pool_.ids(s);
       for (std::size_t k = i, n = pool_.size(s); k < n; ++k) loc_[ids[k]].index = std::uint32_t(k);
@@ -1659,6 +1811,7 @@ public:
     const Kept old = pool_slot(leaf.leaf());
     const typename LeafPool<T>::Slot fresh = pool_.copy_without(old, i);
     leaf.set_leaf(record(fresh));
+    leaf.uncode(int(i));
     if (built()) {
       const std::uint32_t *ids = pool_.ids(fresh);
       for (std::size_t k = i, n = pool_.size(fresh); k < n; ++k) loc_[ids[k]].index = std::uint32_t(k);
@@ -1669,6 +1822,7 @@ public:
   template <int W> void restore(Node<W> &leaf, int n, Kept old) noexcept {
     release(leaf);
     leaf.set_leaf(record(old));
+    leaf.set_coded(0);
     relocate(leaf, n);
   }
   /// Destroys a kept slot's shapes and gives it back.
@@ -1694,6 +1848,7 @@ public:
     if (!node.is_leaf() || !node.leaf().has_slot()) return;
     pool_.release(pool_slot(node.leaf()));
     node.set_leaf(LeafSlot{});
+    node.set_coded(0);
   }
 
   /// A free id (one given back first), not yet located. Strong. Until
@@ -1994,6 +2149,58 @@ template <class T, class Tr, int W> struct Core {
     }
   }
 };
+
+/// Recomputes leaf n's summary (Node::coded()) from its shapes: the frame
+/// is their boxes' union with an eighth of its size to spare on each side,
+/// so that most later appends fit in it. A leaf of more shapes than a
+/// summary holds gets none.
+template <class T, class Tr, int W> void summarize(Core<T, Tr, W> &core, int n) {
+  constexpr int kCoded = Node<W>::kCoded;
+  if constexpr (kCoded > 0) {
+    Node<W> &leaf = core.nodes.node(n);
+    leaf.set_coded(0);
+    if (!leaf.is_leaf() || !leaf.leaf().has_slot() || leaf.leaf().count > std::uint32_t(kCoded)) return;
+    const Span<const T> v = core.leaves.shapes(static_cast<const Node<W> &>(leaf));
+    Box boxes[kCoded], all;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      boxes[i] = box_of(core.traits, v[i]);
+      all.extend(boxes[i]);
+    }
+    typename Node<W>::Frame f;
+    const double sx = all.x1 - all.x0, sy = all.y1 - all.y0;
+    f.ox = float(all.x0 - sx / 8);
+    f.oy = float(all.y0 - sy / 8);
+    // (scale 0 when the frame has no size or none that is finite: every
+    // code is then 0 or 255, which holds every box)
+    const double kx = 255 / (double(all.x1 + sx / 8) - f.ox), ky = 255 / (double(all.y1 + sy / 8) - f.oy);
+    f.sx = kx > 0 && kx < 1e30 ? float(kx) * (1 - 1e-6f) : 0;
+    f.sy = ky > 0 && ky < 1e30 ? float(ky) * (1 - 1e-6f) : 0;
+    leaf.set_frame(f);
+    for (std::size_t i = 0; i < v.size(); ++i) leaf.code(int(i), boxes[i]);
+    leaf.set_coded(int(v.size()));
+  }
+}
+
+/// Leaf n's summary after its last shape, of box `b` (or a box holding
+/// it), was appended: coded too if it fits the frame, else summarize().
+template <class T, class Tr, int W> BVH_ALWAYS_INLINE void summary_push(Core<T, Tr, W> &core, int n, const Box &b) {
+  if constexpr (Node<W>::kCoded > 0) {
+    Node<W> &leaf = core.nodes.node(n);
+    const int count = int(leaf.leaf().count);
+    if (count > Node<W>::kCoded) return;
+    bool inside;
+    const std::uint32_t codes = Node<W>::codes_of(b, leaf.frame(), &inside);
+    if (inside && leaf.coded() == count - 1) {
+      leaf.set_codes(count - 1, codes);
+      leaf.set_coded(count);
+    } else {
+#ifdef BVH_COUNT_SUMMARIES
+      ++bvh_summaries_redone;
+#endif
+      summarize(core, n);
+    }
+  }
+}
 
 // ===========================================================================
 // 5. Builders
@@ -2570,6 +2777,7 @@ template <class T, class Tr, int W, class Rule> void fill_leaf(Core<T, Tr, W> &c
   core.leaves.fill(
       core.nodes.node(n), n, end - begin, [&](std::size_t i) -> T & { return rule.shape(begin + i); },
       [&](std::size_t i) { return rule.id(begin + i); });
+  summarize(core, n);
 }
 
 /// The shared loop: builds every task of `tasks` (and what they spawn) by
@@ -3049,6 +3257,7 @@ BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &box
       }
     } else {
       core.leaves.push(nodes.node(n), n, shape, id);
+      summary_push(core, n, box);
     }
   } catch (...) {
     // Undo the descent: the counts, the leaf's box, its ancestors' unions.
@@ -3071,6 +3280,7 @@ template <class T, class Tr, int W> BVH_ALWAYS_INLINE int insert_unbalanced(Core
     const int root = core.new_node(0, -1, 0);
     try {
       core.leaves.push(nodes.node(root), root, shape, id);
+      summary_push(core, root, box);
     } catch (...) {
       core.free_node(root);
       throw;
@@ -3238,7 +3448,15 @@ template <class T, class Tr, int W> void update_shape(Core<T, Tr, W> &core, std:
   NodeStore<W> &nodes = core.nodes;
   const Box box = box_of(core.traits, moved);
   if (nodes.box(at.leaf).contains(box) || core.size == 1) {
-    assign(core.leaves.shapes(nodes.node(at.leaf))[at.index], moved);
+    // (the shape's code, if it has one, is out of use while it changes)
+    Node<W> &leaf = nodes.node(at.leaf);
+    const int coded = leaf.coded(), i = int(at.index);
+    if (coded > i) leaf.set_coded(i);
+    assign(core.leaves.shapes(leaf)[at.index], moved);
+    if (coded > i) {
+      leaf.code(i, box);
+      leaf.set_coded(coded);
+    }
     if (core.size == 1) // the last shape: its leaf is the root, fitted to it
       nodes.set_box(at.leaf, core.fat(box));
     else if (core.margin == 0)
@@ -3317,7 +3535,15 @@ template <class T, class Tr, int W> bool collides(const Core<T, Tr, W> &core, co
   return !walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
     const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
-      for (const T &s : core.leaves.shapes(node))
+      const Span<const T> v = core.leaves.shapes(node);
+      if constexpr (Node<W>::kCoded > 0) {
+        if (node.coded() == int(v.size())) { // only shapes whose code box meets the probe's
+          for (std::uint32_t bits = node.meets(box, int(v.size())); bits != 0; bits &= bits - 1)
+            if (core.traits.intersect(v[std::size_t(lowest_bit(bits))], shape)) return kStop;
+          return 0;
+        }
+      }
+      for (const T &s : v)
         if (core.traits.intersect(s, shape)) return kStop;
       return 0;
     }
@@ -3834,6 +4060,11 @@ template <class T, class Tr, int W> bool validate_node(const Core<T, Tr, W> &cor
     const Span<const T> shapes = core.leaves.shapes(node);
     for (const T &s : shapes) tight.extend(box_of(core.traits, s));
     count = shapes.size();
+    const int coded = node.coded();
+    if (coded > int(count) || coded > Node<W>::kCoded) return why = "summary of more shapes than the leaf holds", false;
+    for (int i = 0; i < coded; ++i)
+      if (!node.code_holds(i, box_of(core.traits, shapes[std::size_t(i)])))
+        return why = "shape " + std::to_string(i) + "'s summary code does not hold its box", false;
     const std::uint32_t *ids = core.leaves.ids(node);
     for (std::size_t i = 0; i < shapes.size() && core.leaves.located(); ++i)
       if (!core.leaves.contains(ids[i]) || core.leaves.locate(ids[i]).leaf != n ||

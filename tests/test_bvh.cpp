@@ -491,6 +491,53 @@ TEST(round_out_equals_float_down_and_float_up) {
   CHECK_EQ(wrong, 0);
 }
 
+// A wide leaf's summary codes (Node<W>::codes_of): boxes that meet in
+// double have code boxes that meet, in any frame (origins and scales of
+// every size, scale 0, boxes far outside the frame), for the extreme values
+// of round_out's test and random doubles of every magnitude; NaN sides give
+// the widest codes.
+TEST(leaf_summary_codes_keep_every_meeting_box) {
+  using Node8 = bvh::detail::Node<8>;
+  const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> v = {0.0, -0.0, 1e-300, -1e-300, 1e-46, 1.5e-45, 3e-39, 0.1, -0.1, 1.0, -1.0, 16777217.0,
+                           -16777217.0, 3.4028235e38, -3.4028235e38, 3.5e38, -3.5e38, 1e300, -1e300, inf, -inf, nan};
+  const unsigned seed = base_seed() + 11;
+  note("seed " + std::to_string(seed));
+  std::mt19937_64 rng(seed);
+  for (int i = 0; i < scaled(4000); ++i)
+    v.push_back(std::ldexp(std::uniform_real_distribution<double>(-1, 1)(rng), int(rng() % 260) - 130));
+  const float scales[] = {0.f, 1e-30f, 1e-3f, 1.f, 255.f, 3e5f, 1e30f};
+  auto pick = [&] { return v[std::size_t(rng() % v.size())]; };
+  auto lo = [](std::uint32_t c, int axis) { return (c >> (8 * axis)) & 255u; };
+  auto hi = [](std::uint32_t c, int axis) { return (c >> (8 * (axis + 2))) & 255u; };
+  int wrong = 0, nan_wrong = 0, tested = 0;
+  for (int i = 0; i < scaled(200000); ++i) {
+    Node8::Frame f;
+    f.ox = float(pick()), f.oy = float(pick());
+    if (!std::isfinite(f.ox)) f.ox = 0;
+    if (!std::isfinite(f.oy)) f.oy = 0;
+    f.sx = scales[rng() % 7], f.sy = scales[rng() % 7];
+    double a[4] = {pick(), pick(), pick(), pick()}, b[4] = {pick(), pick(), pick(), pick()};
+    for (double *x : {a, b}) {
+      if (x[0] > x[2]) std::swap(x[0], x[2]);
+      if (x[1] > x[3]) std::swap(x[1], x[3]);
+    }
+    const bvh::detail::Box A{a[0], a[1], a[2], a[3]}, B{b[0], b[1], b[2], b[3]};
+    const std::uint32_t ca = Node8::codes_of(A, f), cb = Node8::codes_of(B, f);
+    for (int axis = 0; axis < 2; ++axis) {
+      if (std::isnan(a[axis]) && lo(ca, axis) != 0) ++nan_wrong;
+      if (std::isnan(a[axis + 2]) && hi(ca, axis) != 255) ++nan_wrong;
+    }
+    if (!A.overlaps(B)) continue;
+    ++tested;
+    for (int axis = 0; axis < 2; ++axis)
+      if (lo(ca, axis) > hi(cb, axis) || lo(cb, axis) > hi(ca, axis) || lo(ca, axis) > hi(ca, axis)) ++wrong;
+  }
+  CHECK(tested > scaled(200000) / 20);
+  CHECK_EQ(wrong, 0);
+  CHECK_EQ(nan_wrong, 0);
+}
+
 // The node arrays against std::vector as the model: random appends, writes
 // and pops across block boundaries, then copies and moves.
 TEST(block_vector_behaves_like_a_vector) {

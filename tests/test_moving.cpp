@@ -25,10 +25,10 @@ std::string seed_note(unsigned seed, int step) { return "BVH_SEED=" + std::to_st
 
 /// The tree's contents agree with the model, shape by shape and handle by
 /// handle: get(), contains(), find() and iteration with iterator::id().
-bool agrees(const Tree &tree, const std::map<std::uint32_t, Disk> &model, std::string *why) {
+template <class Tr> bool agrees(const Tr &tree, const std::map<std::uint32_t, Disk> &model, std::string *why) {
   if (tree.size() != model.size()) return *why = "size " + std::to_string(tree.size()), false;
   for (const auto &[id, d] : model) {
-    const Handle h{id};
+    const typename Tr::handle h{id};
     if (!tree.contains(h)) return *why = "lost handle " + std::to_string(id), false;
     if (!(tree.get(h) == d)) return *why = "get(" + std::to_string(id) + ") is another shape", false;
     if (!(*tree.find(h) == d) || tree.find(h).id() != h) return *why = "find(" + std::to_string(id) + ")", false;
@@ -50,12 +50,17 @@ Disk moved(const Disk &d, double dx, double dy) {
 /// Random inserts, erases (by handle and by iterator) and updates of every
 /// size: a jitter, a step about the radius, a jump across the scene, a move
 /// far out of the scene's box and back, a change of radius; after each step
-/// the tree agrees with the model.
-void random_sequence(unsigned seed, double margin, Tree::BuildRule rule, int depth_limit, int steps) {
-  note(seed_note(seed, -1) + " margin " + std::to_string(margin));
+/// the tree agrees with the model. At width W with `split` shapes a leaf
+/// (wide leaves keep summaries of their shapes' boxes, which update()
+/// changes in place).
+template <int W = 3>
+void random_sequence(unsigned seed, double margin, Tree::BuildRule rule, int depth_limit, int steps, int split = 4) {
+  using Tree = BVH<Disk, bvh::shape_traits<Disk>, W>;
+  using Handle = typename Tree::handle;
+  note(seed_note(seed, -1) + " margin " + std::to_string(margin) + " width " + std::to_string(W));
   Maker make(seed);
   std::mt19937 &rng = make.rng;
-  Tree tree(4, depth_limit);
+  Tree tree(split, depth_limit);
   tree.set_build_rule(rule);
   tree.set_margin(margin);
   std::map<std::uint32_t, Disk> model;
@@ -70,7 +75,7 @@ void random_sequence(unsigned seed, double margin, Tree::BuildRule rule, int dep
     return Handle{it->first};
   };
   for (int step = 0; step < steps; ++step) {
-    note(seed_note(seed, step) + " margin " + std::to_string(margin));
+    note(seed_note(seed, step) + " margin " + std::to_string(margin) + " width " + std::to_string(W));
     const unsigned op = unsigned(rng() % 20);
     if (op < 3 || model.empty()) {
       Disk d;
@@ -135,6 +140,11 @@ TEST(handles_survive_with_a_margin) {
 TEST(handles_survive_under_the_sah_rule_and_a_depth_limit) {
   random_sequence(base_seed() + 3300, 0, Tree::BuildRule::sah, 3, scaled(2000));
   random_sequence(base_seed() + 3301, 0.3, Tree::BuildRule::sah, 0, scaled(2000));
+}
+TEST(handles_survive_at_width_8_with_wide_leaves) {
+  random_sequence<8>(base_seed() + 3400, 0, Tree::BuildRule::course, 0, scaled(2000), 32);
+  random_sequence<8>(base_seed() + 3401, 0.75, Tree::BuildRule::course, 0, scaled(1500), 16);
+  random_sequence<4>(base_seed() + 3402, 0, Tree::BuildRule::sah, 0, scaled(1500), 12);
 }
 
 TEST(update_inside_the_leaf_keeps_iterators) {
