@@ -2161,10 +2161,14 @@ template <class T, class Tr, int W> void summarize(Core<T, Tr, W> &core, int n) 
     leaf.set_coded(0);
     if (!leaf.is_leaf() || !leaf.leaf().has_slot() || leaf.leaf().count > std::uint32_t(kCoded)) return;
     const Span<const T> v = core.leaves.shapes(static_cast<const Node<W> &>(leaf));
-    Box boxes[kCoded], all;
+    struct Sides {
+      double x0, y0, x1, y1;
+    } boxes[kCoded]; // (uninitialized: a Box would start empty)
+    Box all;
     for (std::size_t i = 0; i < v.size(); ++i) {
-      boxes[i] = box_of(core.traits, v[i]);
-      all.extend(boxes[i]);
+      const Box b = box_of(core.traits, v[i]);
+      boxes[i] = Sides{b.x0, b.y0, b.x1, b.y1};
+      all.extend(b);
     }
     typename Node<W>::Frame f;
     const double sx = all.x1 - all.x0, sy = all.y1 - all.y0;
@@ -2176,7 +2180,8 @@ template <class T, class Tr, int W> void summarize(Core<T, Tr, W> &core, int n) 
     f.sx = kx > 0 && kx < 1e30 ? float(kx) * (1 - 1e-6f) : 0;
     f.sy = ky > 0 && ky < 1e30 ? float(ky) * (1 - 1e-6f) : 0;
     leaf.set_frame(f);
-    for (std::size_t i = 0; i < v.size(); ++i) leaf.code(int(i), boxes[i]);
+    for (std::size_t i = 0; i < v.size(); ++i)
+      leaf.set_codes(int(i), Node<W>::codes_of(Box{boxes[i].x0, boxes[i].y0, boxes[i].x1, boxes[i].y1}, f));
     leaf.set_coded(int(v.size()));
   }
 }
@@ -3561,7 +3566,17 @@ template <class T, class Tr, int W, class V> void visit_overlapping(const Core<T
   walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
     const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
-      for (const T &s : core.leaves.shapes(node))
+      const Span<const T> v = core.leaves.shapes(node);
+      if constexpr (Node<W>::kCoded > 0) {
+        if (node.coded() == int(v.size())) { // only shapes whose code box meets the box
+          for (std::uint32_t bits = node.meets(box, int(v.size())); bits != 0; bits &= bits - 1) {
+            const T &s = v[std::size_t(lowest_bit(bits))];
+            if (box_of(core.traits, s).overlaps(box) && !visit(s)) return kStop;
+          }
+          return 0;
+        }
+      }
+      for (const T &s : v)
         if (box_of(core.traits, s).overlaps(box) && !visit(s)) return kStop;
       return 0;
     }
@@ -3826,15 +3841,28 @@ template <class T, class Tr, int W, class F>
 #if defined(__GNUC__)
 __attribute__((noinline))
 #endif
-bool boxed_leaf_pairs(const Core<T, Tr, W> &core, const Span<const T> &a, const Box *within_a, const Span<const T> &b,
+bool boxed_leaf_pairs(const Core<T, Tr, W> &core, const Node<W> &leaf_a, const Box *within_a, const Node<W> &leaf_b,
                       const Box *within_b, F &f) {
   struct Boxed {
     const T *shape;
     Box box;
   };
   Boxed in_a[kBoxedPairs], in_b[kBoxedPairs];
-  auto collect = [&](const Span<const T> &v, const Box *within, Boxed *out) {
+  // With a summary in use, only the shapes whose code box meets `within`
+  // are read.
+  auto collect = [&](const Node<W> &leaf, const Box *within, Boxed *out) {
+    const Span<const T> v = core.leaves.shapes(leaf);
     std::size_t n = 0;
+    if constexpr (Node<W>::kCoded > 0) {
+      if (within && leaf.coded() == int(v.size())) {
+        for (std::uint32_t bits = leaf.meets(*within, int(v.size())); bits != 0; bits &= bits - 1) {
+          out[n].shape = &v[std::size_t(lowest_bit(bits))];
+          out[n].box = box_of(core.traits, *out[n].shape);
+          n += out[n].box.overlaps(*within);
+        }
+        return n;
+      }
+    }
     for (const T &s : v) {
       out[n].shape = &s;
       out[n].box = box_of(core.traits, s);
@@ -3845,14 +3873,25 @@ bool boxed_leaf_pairs(const Core<T, Tr, W> &core, const Span<const T> &a, const 
   auto pair = [&](const Boxed &s, const Boxed &u) {
     return s.box.overlaps(u.box) && core.traits.intersect(*s.shape, *u.shape);
   };
-  const std::size_t n = collect(a, within_a, in_a);
-  if (!within_a) { // one leaf
+  const std::size_t n = collect(leaf_a, within_a, in_a);
+  if (!within_a) { // one leaf: shape i against the later shapes whose code box meets its box
+    if constexpr (Node<W>::kCoded > 0) {
+      if (leaf_a.coded() == int(n)) {
+        for (std::size_t i = 0; i + 1 < n; ++i)
+          for (std::uint32_t bits = leaf_a.meets(in_a[i].box, int(n)) & (~std::uint32_t(1) << i); bits != 0;
+               bits &= bits - 1) {
+            const std::size_t j = std::size_t(lowest_bit(bits));
+            if (pair(in_a[i], in_a[j]) && !keep_going(f, *in_a[i].shape, *in_a[j].shape)) return false;
+          }
+        return true;
+      }
+    }
     for (std::size_t i = 0; i < n; ++i)
       for (std::size_t j = i + 1; j < n; ++j)
         if (pair(in_a[i], in_a[j]) && !keep_going(f, *in_a[i].shape, *in_a[j].shape)) return false;
     return true;
   }
-  const std::size_t m = n ? collect(b, within_b, in_b) : 0;
+  const std::size_t m = n ? collect(leaf_b, within_b, in_b) : 0;
   for (std::size_t i = 0; i < n; ++i)
     for (std::size_t j = 0; j < m; ++j)
       if (pair(in_a[i], in_b[j]) && !keep_going(f, *in_a[i].shape, *in_b[j].shape)) return false;
@@ -3876,7 +3915,7 @@ template <bool kMayBeWide, class T, class Tr, int W, class F> void overlapping_p
       if (na.is_leaf()) {
         const Span<const T> v = core.leaves.shapes(na);
         if (kMayBeWide && boxed_size(v.size())) {
-          if (!boxed_leaf_pairs(core, v, nullptr, v, nullptr, f)) return;
+          if (!boxed_leaf_pairs(core, na, nullptr, na, nullptr, f)) return;
           continue;
         }
         for (std::size_t i = 0; i < v.size(); ++i)
@@ -3894,7 +3933,7 @@ template <bool kMayBeWide, class T, class Tr, int W, class F> void overlapping_p
     const Node<W> &nb = nodes.node(b);
     if (na.is_leaf() && nb.is_leaf()) {
       if (kMayBeWide && boxed_size(std::max(na.leaf().count, nb.leaf().count))) {
-        if (!boxed_leaf_pairs(core, core.leaves.shapes(na), &nodes.box(b), core.leaves.shapes(nb), &nodes.box(a), f))
+        if (!boxed_leaf_pairs(core, na, &nodes.box(b), nb, &nodes.box(a), f))
           return;
         continue;
       }
