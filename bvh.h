@@ -772,7 +772,7 @@ template <int W> struct Node {
   // The first coded() shapes have right codes; the summary is in use when
   // that is all of them. Appending keeps it; erase shifts it; every other
   // change of a leaf's shapes sets coded() to 0 or recomputes it
-  // (summarize()). validate() checks every code.
+  // (make_summary()). validate() checks every code.
 
   /// Shapes a leaf's summary holds at most (0: no summary at this width).
   static constexpr int kCoded = W >= 8 ? 4 * W : W >= 4 ? 4 * W - 4 : 0;
@@ -2154,7 +2154,7 @@ template <class T, class Tr, int W> struct Core {
 /// is their boxes' union with an eighth of its size to spare on each side,
 /// so that most later appends fit in it. A leaf of more shapes than a
 /// summary holds gets none.
-template <class T, class Tr, int W> void summarize(Core<T, Tr, W> &core, int n) {
+template <class T, class Tr, int W> void make_summary(Core<T, Tr, W> &core, int n) {
   constexpr int kCoded = Node<W>::kCoded;
   if constexpr (kCoded > 0) {
     Node<W> &leaf = core.nodes.node(n);
@@ -2187,8 +2187,8 @@ template <class T, class Tr, int W> void summarize(Core<T, Tr, W> &core, int n) 
 }
 
 /// Leaf n's summary after its last shape, of box `b` (or a box holding
-/// it), was appended: coded too if it fits the frame, else summarize().
-template <class T, class Tr, int W> BVH_ALWAYS_INLINE void summary_push(Core<T, Tr, W> &core, int n, const Box &b) {
+/// it), was appended: coded too if it fits the frame, else make_summary().
+template <class T, class Tr, int W> BVH_ALWAYS_INLINE void extend_summary(Core<T, Tr, W> &core, int n, const Box &b) {
   if constexpr (Node<W>::kCoded > 0) {
     Node<W> &leaf = core.nodes.node(n);
     const int count = int(leaf.leaf().count);
@@ -2202,7 +2202,7 @@ template <class T, class Tr, int W> BVH_ALWAYS_INLINE void summary_push(Core<T, 
 #ifdef BVH_COUNT_SUMMARIES
       ++bvh_summaries_redone;
 #endif
-      summarize(core, n);
+      make_summary(core, n);
     }
   }
 }
@@ -2782,7 +2782,7 @@ template <class T, class Tr, int W, class Rule> void fill_leaf(Core<T, Tr, W> &c
   core.leaves.fill(
       core.nodes.node(n), n, end - begin, [&](std::size_t i) -> T & { return rule.shape(begin + i); },
       [&](std::size_t i) { return rule.id(begin + i); });
-  summarize(core, n);
+  make_summary(core, n);
 }
 
 /// The shared loop: builds every task of `tasks` (and what they spawn) by
@@ -3262,7 +3262,7 @@ BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &box
       }
     } else {
       core.leaves.push(nodes.node(n), n, shape, id);
-      summary_push(core, n, box);
+      extend_summary(core, n, box);
     }
   } catch (...) {
     // Undo the descent: the counts, the leaf's box, its ancestors' unions.
@@ -3285,7 +3285,7 @@ template <class T, class Tr, int W> BVH_ALWAYS_INLINE int insert_unbalanced(Core
     const int root = core.new_node(0, -1, 0);
     try {
       core.leaves.push(nodes.node(root), root, shape, id);
-      summary_push(core, root, box);
+      extend_summary(core, root, box);
     } catch (...) {
       core.free_node(root);
       throw;
