@@ -538,6 +538,63 @@ TEST(leaf_summary_codes_keep_every_meeting_box) {
   CHECK_EQ(nan_wrong, 0);
 }
 
+// The summaries inside a tree, at width 8 (frame in the links) and 7 (frame
+// after the code rows): disks of every magnitude, with zero, huge and
+// infinite radii, NaN centres and centres beyond float's range, inserted,
+// erased and moved into leaves of ordinary disks; collision() and query()
+// against a scan of the model, validate() (which checks every code) after
+// each step.
+template <int W> void summaries_hold_extreme_disks(unsigned seed, int split) {
+  note("seed " + std::to_string(seed) + " width " + std::to_string(W));
+  std::mt19937_64 rng(seed);
+  const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
+  const double coords[] = {0, 1e-300, -1e-46, 3.5e38, -3.5e38, 1e300, -1e300, inf, -inf, nan, 16777217.0, 0.1};
+  const double radii[] = {0, 1e-300, 0.5, 1e30, inf};
+  auto disk = [&](bool wild) {
+    if (wild && rng() % 2)
+      return Disk(Point(coords[rng() % 12], coords[rng() % 12]), radii[rng() % 5], Color());
+    std::uniform_real_distribution<double> xy(0, 100), r(0.1, 3);
+    return Disk(Point(xy(rng), xy(rng)), r(rng), Color());
+  };
+  BVH<Disk, bvh::shape_traits<Disk>, W> tree(split);
+  std::vector<Disk> model;
+  std::vector<typename BVH<Disk, bvh::shape_traits<Disk>, W>::handle> handles;
+  std::string why;
+  for (int step = 0; step < scaled(600); ++step) {
+    const unsigned op = unsigned(rng() % 10);
+    if (op < 6 || model.empty()) {
+      const Disk d = disk(rng() % 8 == 0);
+      handles.push_back(tree.insert(d));
+      model.push_back(d);
+    } else if (op < 8) {
+      const std::size_t i = std::size_t(rng() % model.size());
+      tree.erase(handles[i]);
+      model.erase(model.begin() + long(i));
+      handles.erase(handles.begin() + long(i));
+    } else {
+      const std::size_t i = std::size_t(rng() % model.size());
+      const Disk d = disk(rng() % 4 == 0);
+      tree.update(handles[i], d);
+      model[i] = d;
+    }
+    if (!tree.validate(&why)) {
+      note("step " + std::to_string(step) + ": " + why);
+      CHECK(false);
+      return;
+    }
+    const Disk probe = disk(rng() % 3 == 0);
+    std::size_t found = 0, expected = 0;
+    for (const Disk &d : model) expected += model_intersect(d, probe) ? 1 : 0;
+    tree.query(probe, [&](const Disk &) { ++found; });
+    CHECK_EQ(found, expected);
+    CHECK_EQ(tree.collision(probe), expected != 0);
+  }
+}
+TEST(leaf_summaries_hold_extreme_disks) {
+  summaries_hold_extreme_disks<8>(base_seed() + 12, 32);
+  summaries_hold_extreme_disks<7>(base_seed() + 13, 24);
+}
+
 // The node arrays against std::vector as the model: random appends, writes
 // and pops across block boundaries, then copies and moves.
 TEST(block_vector_behaves_like_a_vector) {
