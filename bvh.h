@@ -3609,12 +3609,14 @@ public:
   void next() {
     at_ = nullptr;
     for (;;) {
+      while (bits_ != 0) { // a summarized leaf: the shapes whose code box meets the box
+        const T *s = next_ + lowest_bit(bits_);
+        bits_ &= bits_ - 1;
+        if (found(*s)) return;
+      }
       while (next_ != last_) {
         const T *s = next_++;
-        if (box_of(core_->traits, *s).overlaps(box_) && (!shape_ || core_->traits.intersect(*s, *shape_))) {
-          at_ = s;
-          return;
-        }
+        if (found(*s)) return;
       }
       if (stack_.empty()) return;
       const Node<W> &node = core_->nodes.node(stack_.pop());
@@ -3622,6 +3624,12 @@ public:
         const Span<const T> v = core_->leaves.shapes(node);
         next_ = v.begin();
         last_ = v.end();
+        if constexpr (Node<W>::kCoded > 0) {
+          if (node.coded() == int(v.size())) {
+            bits_ = node.meets(box_, int(v.size()));
+            last_ = next_;
+          }
+        }
         continue;
       }
       unsigned hits, near;
@@ -3631,12 +3639,21 @@ public:
   }
 
 private:
+  /// True, with at_ set, when `s` is a shape the search finds.
+  bool found(const T &s) {
+    if (!box_of(core_->traits, s).overlaps(box_) || (shape_ && !core_->traits.intersect(s, *shape_))) return false;
+    at_ = &s;
+    return true;
+  }
   const Core<T, Tr, W> *core_ = nullptr;
   Box box_;
   Probe probe_ = Probe(0, 0, 0, 0, 0, 0);
   std::optional<T> shape_; // a copy: the probe may be a temporary
   IndexStack stack_;
+  // The current leaf's shapes not yet looked at: [next_, last_), or with a
+  // summary in use, next_ + each set bit of bits_ (last_ == next_).
   const T *next_ = nullptr, *last_ = nullptr;
+  std::uint32_t bits_ = 0;
   const T *at_ = nullptr;
 };
 
@@ -3651,6 +3668,17 @@ template <class T, class Tr, int W> bool find_equal(const Core<T, Tr, W> &core, 
     const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
       const Span<const T> v = core.leaves.shapes(node);
+      if constexpr (Node<W>::kCoded > 0) {
+        if (node.coded() == int(v.size())) { // an equal shape's code box meets `box`
+          for (std::uint32_t bits = node.meets(box, int(v.size())); bits != 0; bits &= bits - 1)
+            if (v[std::size_t(lowest_bit(bits))] == value) {
+              leaf = n;
+              index = std::size_t(lowest_bit(bits));
+              return kStop;
+            }
+          return 0;
+        }
+      }
       for (std::size_t i = 0; i < v.size(); ++i)
         if (v[i] == value) {
           leaf = n;

@@ -297,13 +297,14 @@ TEST(k_nearest_triangles_and_quads) {
   nearest_against_brute<Quad>(base_seed() + 3703, 10);
 }
 
-TEST(overlapping_range_visits_what_query_visits) {
-  const unsigned seed = base_seed() + 3800;
+/// At width W with `split` shapes a leaf (wide leaves read through their
+/// summaries, both in query() and in the range).
+template <int W> void range_visits_what_query_visits(unsigned seed, int split) {
   Maker make(seed);
-  BVH<Shape> tree(4, 0);
+  BVH<Shape, bvh::shape_traits<Shape>, W> tree(split, 0);
   for (const Shape &s : make.scene<Shape>(scaled(3000), 6)) tree.insert(s);
   for (int q = 0; q < scaled(400); ++q) {
-    note("BVH_SEED=" + std::to_string(seed) + " probe " + std::to_string(q));
+    note("BVH_SEED=" + std::to_string(seed) + " width " + std::to_string(W) + " probe " + std::to_string(q));
     Shape probe;
     make.make(probe, q % 2 ? 3 : 60);
     std::vector<const Shape *> by_query, by_range;
@@ -324,6 +325,10 @@ TEST(overlapping_range_visits_what_query_visits) {
     }
     CHECK_EQ(any, tree.collision(probe));
   }
+}
+TEST(overlapping_range_visits_what_query_visits) {
+  range_visits_what_query_visits<3>(base_seed() + 3800, 4);
+  range_visits_what_query_visits<8>(base_seed() + 3810, 32);
 }
 
 TEST(a_disk_query_finds_everything_within_its_radius) {
