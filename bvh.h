@@ -1203,6 +1203,28 @@ inline int lowest_bit(std::uint32_t bits) {
 #endif
 }
 
+/// child_masks' `hits` alone: bit c set when child c's box meets the
+/// probe's box.
+template <int W> inline unsigned child_hits(const Node<W> &node, const Probe &p) {
+  const unsigned live = (1u << node.num_children) - 1;
+  unsigned hits = 0;
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+  for (int g = 0; g < W; g += 4) {
+    const __m128 lx = _mm_loadu_ps(node.lo_x + g), ly = _mm_loadu_ps(node.lo_y + g);
+    const __m128 hx = _mm_loadu_ps(node.hi_x + g), hy = _mm_loadu_ps(node.hi_y + g);
+    const __m128 meets = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.hi_x), _mm_cmple_ps(p.lo_x, hx)),
+                                    _mm_and_ps(_mm_cmple_ps(ly, p.hi_y), _mm_cmple_ps(p.lo_y, hy)));
+    hits |= unsigned(_mm_movemask_ps(meets)) << g;
+  }
+#else
+  for (int c = 0; c < W; ++c)
+    hits |= unsigned((node.lo_x[c] <= p.hi_x) & (p.lo_x <= node.hi_x[c]) & (node.lo_y[c] <= p.hi_y) &
+                     (p.lo_y <= node.hi_y[c]))
+            << c;
+#endif
+  return hits & live;
+}
+
 /// walk()'s visit result: bit c enters child c (c < num_children); bit
 /// kFirst + c enters it before every child of the low bits; kStop ends
 /// the walk.
@@ -3536,7 +3558,6 @@ template <class T, class Tr, int W> bool collides(const Core<T, Tr, W> &core, co
   const Box box = box_of(core.traits, shape);
   if (!core.nodes.box(core.root).overlaps(box)) return false;
   const Probe probe = Probe::around(box);
-  // Children holding the probe's centre first: a hit there is likely.
   return !walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
     const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
@@ -3552,9 +3573,17 @@ template <class T, class Tr, int W> bool collides(const Core<T, Tr, W> &core, co
         if (core.traits.intersect(s, shape)) return kStop;
       return 0;
     }
-    unsigned hits, near;
-    child_masks(node, probe, hits, near);
-    return hits | near << kFirst; // near is a subset of hits
+    // Children holding the probe's centre first, where leaves have no
+    // summary: there a leaf visit reads every shape, and a hit is likely
+    // in those. A summarized leaf is cheap to visit, and the second test
+    // a node would cost more than the order saves.
+    if constexpr (Node<W>::kCoded > 0) {
+      return child_hits(node, probe);
+    } else {
+      unsigned hits, near;
+      child_masks(node, probe, hits, near);
+      return hits | near << kFirst; // near is a subset of hits
+    }
   });
 }
 
@@ -3580,9 +3609,7 @@ template <class T, class Tr, int W, class V> void visit_overlapping(const Core<T
         if (box_of(core.traits, s).overlaps(box) && !visit(s)) return kStop;
       return 0;
     }
-    unsigned hits, near;
-    child_masks(node, probe, hits, near);
-    return hits;
+    return child_hits(node, probe);
   });
 }
 
@@ -3632,9 +3659,7 @@ public:
         }
         continue;
       }
-      unsigned hits, near;
-      child_masks(node, probe_, hits, near);
-      push_children(stack_, node, hits);
+      push_children(stack_, node, child_hits(node, probe_));
     }
   }
 
