@@ -762,9 +762,9 @@ template <int W> struct Node {
 
   // A leaf's summary. A leaf does not use its children's box rows, so at
   // widths 4 to 8 they hold its first shapes' boxes, each side quantized
-  // to 8 bits within a frame that the leaf stores too: collision() tests
-  // the probe against all of them in one SIMD pass and reads only the
-  // shapes whose code box meets it. Codes come from one map that never
+  // to 8 bits within a frame that the leaf stores too: a query tests its
+  // box against all of them in one SIMD pass and reads only the shapes
+  // whose code box meets it. Codes come from one map that never
   // decreases (codes_of), so boxes that meet have code boxes that meet,
   // also outside the frame, where codes are clamped (the frame sets the
   // precision only). Queries use it only where shapes that intersect have
