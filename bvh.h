@@ -802,7 +802,10 @@ template <int W> struct Node {
     std::memcpy(&f, frame_bytes(), sizeof f);
     return f;
   }
-  void set_frame(const Frame &f) { std::memcpy(frame_bytes(), &f, sizeof f); }
+  void set_frame(const Frame &f) {
+    BVH_INVARIANT(static_cast<const void *>(lo_x) == static_cast<const void *>(this), "row() needs the box rows first");
+    std::memcpy(frame_bytes(), &f, sizeof f);
+  }
   /// The codes of box `b` in frame `f`, bytes 0 to 3 of the result: low x,
   /// low y, high x, high y. A side's code is the integer part of t =
   /// (float(v) - origin) * scale, in float, clamped to 0..255 (a NaN low
