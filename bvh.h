@@ -1161,38 +1161,39 @@ inline __m128d two_floats(const float *f) {
 /// first). With SSE2 every child is tested in one 4-lane compare per bound
 /// (the fourth lane reads the next field of the node and is masked off).
 /// BVH_NO_SIMD forces the scalar path.
-template <int W> inline void child_masks(const Node<W> &node, const Probe &p, unsigned &hits, unsigned &near) {
+template <int W, bool kNear = true>
+BVH_ALWAYS_INLINE void child_masks(const Node<W> &node, const Probe &p, unsigned &hits, unsigned &near) {
   const unsigned live = (1u << node.num_children) - 1;
+  hits = 0;
+  near = 0;
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
   // Four children a pass; the lanes past W read the next row (or, after
   // hi_y, the links) and are masked off.
-  unsigned meets_bits = 0, holds_bits = 0;
   for (int g = 0; g < W; g += 4) {
     const __m128 lx = _mm_loadu_ps(node.lo_x + g), ly = _mm_loadu_ps(node.lo_y + g);
     const __m128 hx = _mm_loadu_ps(node.hi_x + g), hy = _mm_loadu_ps(node.hi_y + g);
     const __m128 meets = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.hi_x), _mm_cmple_ps(p.lo_x, hx)),
                                     _mm_and_ps(_mm_cmple_ps(ly, p.hi_y), _mm_cmple_ps(p.lo_y, hy)));
-    const __m128 holds = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.mid_x), _mm_cmple_ps(p.mid_x, hx)),
-                                    _mm_and_ps(_mm_cmple_ps(ly, p.mid_y), _mm_cmple_ps(p.mid_y, hy)));
-    meets_bits |= unsigned(_mm_movemask_ps(meets)) << g;
-    holds_bits |= unsigned(_mm_movemask_ps(holds)) << g;
+    hits |= unsigned(_mm_movemask_ps(meets)) << g;
+    if constexpr (kNear) {
+      const __m128 holds = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.mid_x), _mm_cmple_ps(p.mid_x, hx)),
+                                      _mm_and_ps(_mm_cmple_ps(ly, p.mid_y), _mm_cmple_ps(p.mid_y, hy)));
+      near |= unsigned(_mm_movemask_ps(holds)) << g;
+    }
   }
-  hits = meets_bits & live;
-  near = holds_bits & hits;
 #else
-  hits = 0;
-  near = 0;
   for (int c = 0; c < W; ++c) {
     hits |= unsigned((node.lo_x[c] <= p.hi_x) & (p.lo_x <= node.hi_x[c]) & (node.lo_y[c] <= p.hi_y) &
                      (p.lo_y <= node.hi_y[c]))
             << c;
-    near |= unsigned((node.lo_x[c] <= p.mid_x) & (p.mid_x <= node.hi_x[c]) & (node.lo_y[c] <= p.mid_y) &
-                     (p.mid_y <= node.hi_y[c]))
-            << c;
+    if constexpr (kNear)
+      near |= unsigned((node.lo_x[c] <= p.mid_x) & (p.mid_x <= node.hi_x[c]) & (node.lo_y[c] <= p.mid_y) &
+                       (p.mid_y <= node.hi_y[c]))
+              << c;
   }
+#endif
   hits &= live;
   near &= hits;
-#endif
 }
 
 /// The index of the lowest set bit of `bits` (not 0).
@@ -1208,24 +1209,10 @@ inline int lowest_bit(std::uint32_t bits) {
 
 /// child_masks' `hits` alone: bit c set when child c's box meets the
 /// probe's box.
-template <int W> inline unsigned child_hits(const Node<W> &node, const Probe &p) {
-  const unsigned live = (1u << node.num_children) - 1;
-  unsigned hits = 0;
-#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
-  for (int g = 0; g < W; g += 4) {
-    const __m128 lx = _mm_loadu_ps(node.lo_x + g), ly = _mm_loadu_ps(node.lo_y + g);
-    const __m128 hx = _mm_loadu_ps(node.hi_x + g), hy = _mm_loadu_ps(node.hi_y + g);
-    const __m128 meets = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.hi_x), _mm_cmple_ps(p.lo_x, hx)),
-                                    _mm_and_ps(_mm_cmple_ps(ly, p.hi_y), _mm_cmple_ps(p.lo_y, hy)));
-    hits |= unsigned(_mm_movemask_ps(meets)) << g;
-  }
-#else
-  for (int c = 0; c < W; ++c)
-    hits |= unsigned((node.lo_x[c] <= p.hi_x) & (p.lo_x <= node.hi_x[c]) & (node.lo_y[c] <= p.hi_y) &
-                     (p.lo_y <= node.hi_y[c]))
-            << c;
-#endif
-  return hits & live;
+template <int W> BVH_ALWAYS_INLINE unsigned child_hits(const Node<W> &node, const Probe &p) {
+  unsigned hits, near;
+  child_masks<W, false>(node, p, hits, near);
+  return hits;
 }
 
 /// walk()'s visit result: bit c enters child c (c < num_children); bit
@@ -3553,6 +3540,23 @@ template <class T, class Tr, int W> void set_margin(Core<T, Tr, W> &core, double
 // run walk(); overlapping() runs walk()'s steps one at a time; the nearest
 // searches and the ray run best_first().
 
+/// Calls f(i) for each index i of leaf `node`'s n shapes whose box may
+/// meet `box`, ascending, until f returns false (then returns false): with
+/// the leaf's summary in use, the shapes whose code box meets it; else
+/// every shape.
+template <int W, class F> BVH_ALWAYS_INLINE bool each_candidate(const Node<W> &node, std::size_t n, const Box &box, F &&f) {
+  if constexpr (Node<W>::kCoded > 0) {
+    if (node.coded() == int(n)) {
+      for (std::uint32_t bits = node.meets(box, int(n)); bits != 0; bits &= bits - 1)
+        if (!f(std::size_t(lowest_bit(bits)))) return false;
+      return true;
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i)
+    if (!f(i)) return false;
+  return true;
+}
+
 /// True iff some stored shape intersects `shape` (touching counts).
 /// Subtrees whose box misses the shape's box are never visited; the final
 /// test is T's intersect().
@@ -3565,16 +3569,9 @@ template <class T, class Tr, int W> bool collides(const Core<T, Tr, W> &core, co
     const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
       const Span<const T> v = core.leaves.shapes(node);
-      if constexpr (Node<W>::kCoded > 0) {
-        if (node.coded() == int(v.size())) { // only shapes whose code box meets the probe's
-          for (std::uint32_t bits = node.meets(box, int(v.size())); bits != 0; bits &= bits - 1)
-            if (core.traits.intersect(v[std::size_t(lowest_bit(bits))], shape)) return kStop;
-          return 0;
-        }
-      }
-      for (const T &s : v)
-        if (core.traits.intersect(s, shape)) return kStop;
-      return 0;
+      const bool missed =
+          each_candidate(node, v.size(), box, [&](std::size_t i) { return !core.traits.intersect(v[i], shape); });
+      return missed ? 0 : kStop;
     }
     // Children holding the probe's centre first, where leaves have no
     // summary: there a leaf visit reads every shape, and a hit is likely
@@ -3599,18 +3596,10 @@ template <class T, class Tr, int W, class V> void visit_overlapping(const Core<T
     const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
       const Span<const T> v = core.leaves.shapes(node);
-      if constexpr (Node<W>::kCoded > 0) {
-        if (node.coded() == int(v.size())) { // only shapes whose code box meets the box
-          for (std::uint32_t bits = node.meets(box, int(v.size())); bits != 0; bits &= bits - 1) {
-            const T &s = v[std::size_t(lowest_bit(bits))];
-            if (box_of(core.traits, s).overlaps(box) && !visit(s)) return kStop;
-          }
-          return 0;
-        }
-      }
-      for (const T &s : v)
-        if (box_of(core.traits, s).overlaps(box) && !visit(s)) return kStop;
-      return 0;
+      const bool went_on = each_candidate(node, v.size(), box, [&](std::size_t i) {
+        return !box_of(core.traits, v[i]).overlaps(box) || visit(v[i]);
+      });
+      return went_on ? 0 : kStop;
     }
     return child_hits(node, probe);
   });
@@ -3695,25 +3684,15 @@ template <class T, class Tr, int W> bool find_equal(const Core<T, Tr, W> &core, 
   return !walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
     const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
+      // (an equal shape has the same box: its code box meets `box`)
       const Span<const T> v = core.leaves.shapes(node);
-      if constexpr (Node<W>::kCoded > 0) {
-        if (node.coded() == int(v.size())) { // an equal shape's code box meets `box`
-          for (std::uint32_t bits = node.meets(box, int(v.size())); bits != 0; bits &= bits - 1)
-            if (v[std::size_t(lowest_bit(bits))] == value) {
-              leaf = n;
-              index = std::size_t(lowest_bit(bits));
-              return kStop;
-            }
-          return 0;
-        }
-      }
-      for (std::size_t i = 0; i < v.size(); ++i)
-        if (v[i] == value) {
-          leaf = n;
-          index = i;
-          return kStop;
-        }
-      return 0;
+      const bool missed = each_candidate(node, v.size(), box, [&](std::size_t i) {
+        if (!(v[i] == value)) return true;
+        leaf = n;
+        index = i;
+        return false;
+      });
+      return missed ? 0 : kStop;
     }
     unsigned enter = 0;
     for (int c = 0; c < node.num_children; ++c)
@@ -3909,21 +3888,15 @@ bool boxed_leaf_pairs(const Core<T, Tr, W> &core, const Node<W> &leaf_a, const B
   auto collect = [&](const Node<W> &leaf, const Box *within, Boxed *out) {
     const Span<const T> v = core.leaves.shapes(leaf);
     std::size_t n = 0;
-    if constexpr (Node<W>::kCoded > 0) {
-      if (within && leaf.coded() == int(v.size())) {
-        for (std::uint32_t bits = leaf.meets(*within, int(v.size())); bits != 0; bits &= bits - 1) {
-          out[n].shape = &v[std::size_t(lowest_bit(bits))];
-          out[n].box = box_of(core.traits, *out[n].shape);
-          n += out[n].box.overlaps(*within);
-        }
-        return n;
-      }
-    }
-    for (const T &s : v) {
-      out[n].shape = &s;
-      out[n].box = box_of(core.traits, s);
+    auto take = [&](std::size_t i) {
+      out[n].shape = &v[i];
+      out[n].box = box_of(core.traits, v[i]);
       n += !within || out[n].box.overlaps(*within);
-    }
+      return true;
+    };
+    if (within) each_candidate(leaf, v.size(), *within, take);
+    else
+      for (std::size_t i = 0; i < v.size(); ++i) take(i);
     return n;
   };
   auto pair = [&](const Boxed &s, const Boxed &u) {
