@@ -1232,27 +1232,35 @@ template <int W> BVH_ALWAYS_INLINE void push_bits(IndexStack &stack, const Node<
 #endif
 }
 
-/// Pushes the children `enter` names (walk()'s visit result) so that they
-/// pop in order: the "first" group, then the rest, each left to right.
-template <int W> BVH_ALWAYS_INLINE void push_children(IndexStack &stack, const Node<W> &node, unsigned enter) {
-  const unsigned first = enter >> kFirst, later = enter & ~first & child_bits(W);
+/// Of the children `enter` names (walk()'s visit result, at least one),
+/// returns the one to visit next and pushes the others so that they pop in
+/// order: the "first" group, then the rest, each left to right. The next
+/// child skips the stack: most steps of a query enter one child.
+template <int W> BVH_ALWAYS_INLINE int enter_children(IndexStack &stack, const Node<W> &node, unsigned enter) {
+  unsigned first = enter >> kFirst, later = enter & ~first & child_bits(W);
+  if (first == 0) {
+    first = later;
+    later = 0;
+  }
+  const int next = node.child(lowest_bit(first));
+  first &= first - 1;
   if constexpr (W == 3) { // unrolled: this is collision()'s inner loop
     if (later & 4u) stack.push(node.child(2));
     if (later & 2u) stack.push(node.child(1));
     if (later & 1u) stack.push(node.child(0));
     if (first & 4u) stack.push(node.child(2));
     if (first & 2u) stack.push(node.child(1));
-    if (first & 1u) stack.push(node.child(0));
   } else {
     push_bits(stack, node, later);
     push_bits(stack, node, first);
   }
+  return next;
 }
 
 /// The one depth-first traversal (collision, the queries, find_equal, the
 /// rebuilds' gathering, every pre-order pass): from node `from`, each node
 /// visited before its children. visit(n) returns which children of n to
-/// enter (none for a leaf) or kStop. Returns false when a visit stopped it.
+/// enter (0 for a leaf) or kStop. Returns false when a visit stopped it.
 /// overlapping()'s iterator runs the same steps with its stack kept between
 /// calls.
 template <int W, class Visit> BVH_ALWAYS_INLINE bool walk(const NodeStore<W> &nodes, int from, Visit &&visit) {
@@ -1261,8 +1269,11 @@ template <int W, class Visit> BVH_ALWAYS_INLINE bool walk(const NodeStore<W> &no
   for (;;) {
     const unsigned enter = visit(n);
     if (enter & kStop) return false;
-    const Node<W> &node = nodes.node(n);
-    if (!node.is_leaf()) push_children(stack, node, enter);
+    if (enter != 0) {
+      BVH_INVARIANT(!nodes.node(n).is_leaf(), "walk(): a leaf's visit enters children");
+      n = enter_children(stack, nodes.node(n), enter);
+      continue;
+    }
     if (stack.empty()) return true;
     n = stack.pop();
   }
@@ -3651,7 +3662,8 @@ public:
         }
         continue;
       }
-      push_children(stack_, node, child_hits(node, probe_));
+      const unsigned hits = child_hits(node, probe_);
+      if (hits != 0) stack_.push(enter_children(stack_, node, hits)); // (it pops first)
     }
   }
 
