@@ -3131,6 +3131,20 @@ template <class F> inline int least_growth(int n, const F *growth, const F *area
   return best;
 }
 
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+/// Bit i set for each lane i (of 4 * G) equal to the least of `v`
+/// (none when every lane is NaN).
+template <int G> BVH_ALWAYS_INLINE unsigned lanes_at_min(const __m128 *v) {
+  __m128 m = v[0];
+  for (int g = 1; g < G; ++g) m = _mm_min_ps(m, v[g]);
+  m = _mm_min_ps(m, _mm_shuffle_ps(m, m, _MM_SHUFFLE(2, 3, 0, 1)));
+  m = _mm_min_ps(m, _mm_shuffle_ps(m, m, _MM_SHUFFLE(1, 0, 3, 2)));
+  unsigned bits = 0;
+  for (int g = 0; g < G; ++g) bits |= unsigned(_mm_movemask_ps(_mm_cmpeq_ps(v[g], m))) << (4 * g);
+  return bits;
+}
+#endif
+
 /// The insertion strategy, part 1: the child of inner node n whose box
 /// grows least in area when it takes `box`; ties go to the smaller child,
 /// then the first. Boxes are the children's float boxes (rounded outwards)
@@ -3143,19 +3157,36 @@ template <int W> inline int choose_child(const Node<W> &node, const Box &box) {
     // go the other way than in double; either child is a valid choice,
     // and these widths promise no particular tree (the course's, width 3,
     // takes the double path below).
+    // The pick is a reduction in registers, not a loop of compares: which
+    // child wins is data, and the loop's branches mispredicted. A NaN
+    // growth or area (a box with infinite or NaN sides) never wins unless
+    // every child's is NaN; then the first child takes the shape.
     const __m128 bx0 = _mm_set1_ps(float(box.x0)), by0 = _mm_set1_ps(float(box.y0));
     const __m128 bx1 = _mm_set1_ps(float(box.x1)), by1 = _mm_set1_ps(float(box.y1));
-    float growth[W], area[W];
+    const __m128 inf = _mm_set1_ps(std::numeric_limits<float>::infinity());
+    __m128 growth[W / 4], area[W / 4];
     for (int g = 0; g < W; g += 4) {
       const __m128 x0 = _mm_loadu_ps(node.lo_x + g), y0 = _mm_loadu_ps(node.lo_y + g);
       const __m128 x1 = _mm_loadu_ps(node.hi_x + g), y1 = _mm_loadu_ps(node.hi_y + g);
       const __m128 a = _mm_mul_ps(_mm_sub_ps(x1, x0), _mm_sub_ps(y1, y0));
       const __m128 grown = _mm_mul_ps(_mm_sub_ps(_mm_max_ps(bx1, x1), _mm_min_ps(bx0, x0)),
                                       _mm_sub_ps(_mm_max_ps(by1, y1), _mm_min_ps(by0, y0)));
-      _mm_storeu_ps(area + g, a);
-      _mm_storeu_ps(growth + g, _mm_sub_ps(grown, a));
+      // Lanes past the last child (and NaNs: _mm_min_ps(x, inf) is inf
+      // for a NaN x) lose.
+      const __m128 live = _mm_castsi128_ps(
+          _mm_cmplt_epi32(_mm_setr_epi32(g, g + 1, g + 2, g + 3), _mm_set1_epi32(node.num_children)));
+      growth[g / 4] = _mm_or_ps(_mm_and_ps(live, _mm_min_ps(_mm_sub_ps(grown, a), inf)), _mm_andnot_ps(live, inf));
+      area[g / 4] = _mm_or_ps(_mm_and_ps(live, _mm_min_ps(a, inf)), _mm_andnot_ps(live, inf));
     }
-    return node.child(least_growth(node.num_children, growth, area));
+    const unsigned least = lanes_at_min<W / 4>(growth);
+    if ((least & (least - 1)) == 0) return node.child(least ? lowest_bit(least) : 0);
+    for (int g = 0; g < W / 4; ++g) { // a tie: the smaller area among the least growths
+      const __m128 tied = _mm_castsi128_ps(_mm_setr_epi32(-int(least >> (4 * g) & 1u), -int(least >> (4 * g + 1) & 1u),
+                                                          -int(least >> (4 * g + 2) & 1u), -int(least >> (4 * g + 3) & 1u)));
+      area[g] = _mm_or_ps(_mm_and_ps(tied, area[g]), _mm_andnot_ps(tied, inf));
+    }
+    const unsigned smallest = lanes_at_min<W / 4>(area) & least;
+    return node.child(lowest_bit(smallest ? smallest : least));
   }
 #endif
   double growth[W + W % 2], area[W + W % 2]; // (even: the passes below take two)
