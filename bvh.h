@@ -3150,7 +3150,7 @@ template <int G> BVH_ALWAYS_INLINE unsigned lanes_at_min(const __m128 *v) {
 /// then the first. Boxes are the children's float boxes (rounded outwards)
 /// kept in the parent, so the choice reads one cache line; areas are
 /// computed in double from those floats.
-template <int W> inline int choose_child(const Node<W> &node, const Box &box) {
+template <int W> BVH_ALWAYS_INLINE int choose_child(const Node<W> &node, const Box &box) {
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
   if constexpr (W % 4 == 0) {
     // Widths 4 and 8: four children a pass in float. A near tie may then
@@ -3283,21 +3283,31 @@ template <class T, class Tr, int W> void rebalance(Core<T, Tr, W> &core, int sca
 /// once). Strong: if it throws, the counts and boxes from `top` down are
 /// undone (a split is built beside the leaf, which goes only once the new
 /// subtree is complete).
+/// `*lopsided_above` gets find_scapegoat()'s answer for the path from
+/// `top` down to the leaf's parent, read on the way down (the counts above
+/// the leaf are final there): insert_scapegoat() completes it.
 template <class T, class Tr, int W>
-BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &box, const T &shape, std::uint32_t id) {
+BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &box, const T &shape, std::uint32_t id,
+                                   int *lopsided_above = nullptr) {
   NodeStore<W> &nodes = core.nodes;
-  int n = top;
+  const std::size_t smallest = min_rebuild(core);
+  int n = top, above = -1, prev = -1;
+  std::size_t prev_count = 0;
   Box leaf_box; // the leaf's box before: with a margin it may exceed its shapes'
   for (;;) {
-    ++nodes.info(n).count;
+    const std::size_t count = ++nodes.info(n).count;
     if (nodes.node(n).is_leaf()) {
       leaf_box = nodes.box(n);
       nodes.extend_box(n, box);
       break;
     }
+    if (above < 0 && prev >= 0 && prev_count >= smallest && lopsided(count, prev_count)) above = prev;
     nodes.extend_box(n, box);
+    prev = n;
+    prev_count = count;
     n = choose_child(nodes.node(n), box);
   }
+  if (lopsided_above) *lopsided_above = above;
   try {
     if (!core.is_leaf_size(nodes.info(n).count, nodes.info(n).depth)) {
       // The leaf splits: copies of its shapes and the new one go straight
@@ -3332,7 +3342,9 @@ BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &box
 /// insert_shape() without its rebalance: insert_below() from the root (or
 /// the first shape as the root leaf). Returns the node the shape went to.
 /// Strong.
-template <class T, class Tr, int W> BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr, W> &core, const T &shape, std::uint32_t id) {
+template <class T, class Tr, int W>
+BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr, W> &core, const T &shape, std::uint32_t id, int *lopsided_above = nullptr) {
+  if (lopsided_above) *lopsided_above = -1;
   NodeStore<W> &nodes = core.nodes;
   const Box box = core.fat(box_of(core.traits, shape));
   if (core.root < 0) {
@@ -3350,17 +3362,36 @@ template <class T, class Tr, int W> BVH_ALWAYS_INLINE int insert_unbalanced(Core
     core.size = 1;
     return root;
   }
-  const int n = insert_below(core, core.root, box, shape, id);
+  const int n = insert_below(core, core.root, box, shape, id, lopsided_above);
   ++core.size;
   return n;
 }
 
+/// find_scapegoat(core, parent of n, n, false, stop) after an insert that
+/// went to node `n` (insert_below's result), given insert_below's
+/// `lopsided_above`: only the last step, from n's parent to n, is left to
+/// test, since a split or splice changes n but no count above it. It
+/// saves a second walk up the path per insert.
+template <class T, class Tr, int W> int insert_scapegoat(const Core<T, Tr, W> &core, int n, int lopsided_above, int stop = -1) {
+  const NodeStore<W> &nodes = core.nodes;
+  int found = lopsided_above;
+  if (found < 0) {
+    const int a = nodes.info(n).parent;
+    if (a != stop && a >= 0 && nodes.info(a).count >= min_rebuild(core) && lopsided(nodes.info(n).count, nodes.info(a).count))
+      found = a;
+  }
+  BVH_INVARIANT(found == find_scapegoat(core, nodes.info(n).parent, n, false, stop),
+                "the scapegoat read on the way down differs from the walk up");
+  return found;
+}
+
 /// Adds `shape` under an id already taken (insert_unbalanced), then
-/// rebuilds the highest lopsided node on the path (find_scapegoat,
-/// rebalance). Strong.
+/// rebuilds the highest lopsided node on the path (find_scapegoat, read
+/// on the way: insert_scapegoat; rebalance). Strong.
 template <class T, class Tr, int W> void insert_shape(Core<T, Tr, W> &core, const T &shape, std::uint32_t id) {
-  const int n = insert_unbalanced(core, shape, id);
-  rebalance(core, find_scapegoat(core, core.nodes.info(n).parent, n, false), Cut::by_rule);
+  int above;
+  const int n = insert_unbalanced(core, shape, id, &above);
+  rebalance(core, insert_scapegoat(core, n, above), Cut::by_rule);
 }
 
 /// What update() needs to undo an erase_at(): the leaf's old slot (kept
@@ -4711,8 +4742,9 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
         try {
           const T &shape = candidates[keep[i]];
           const int top = nodes.node(lane.parent).child(lane.child_index);
-          const int n = insert_below(core, top, core.fat(box_of(core.traits, shape)), shape, ids[i - next]);
-          rebalance(core, find_scapegoat(core, nodes.info(n).parent, n, false, lane.parent), Cut::by_rule);
+          int above;
+          const int n = insert_below(core, top, core.fat(box_of(core.traits, shape)), shape, ids[i - next], &above);
+          rebalance(core, insert_scapegoat(core, n, above, lane.parent), Cut::by_rule);
         } catch (...) {
           lane.error = std::current_exception();
           failed = true;
