@@ -2176,20 +2176,21 @@ template <class T, class Tr, int W> struct Core {
 /// Recomputes leaf n's summary (Node::coded()) from its shapes: the frame
 /// is their boxes' union with an eighth of its size to spare on each side,
 /// so that most later appends fit in it. A leaf of more shapes than a
-/// summary holds gets none.
-template <class T, class Tr, int W> void make_summary(Core<T, Tr, W> &core, int n) {
+/// summary holds gets none. `box_at(i)`: the box of the leaf's shape i,
+/// when the caller has it (box_of() of the shape by default).
+template <class T, class Tr, int W, class BoxAt> void make_summary(Core<T, Tr, W> &core, int n, BoxAt &&box_at) {
   constexpr int kCoded = Node<W>::kCoded;
   if constexpr (kCoded > 0) {
     Node<W> &leaf = core.nodes.node(n);
     leaf.set_coded(0);
     if (!leaf.is_leaf() || !leaf.leaf().has_slot() || leaf.leaf().count > std::uint32_t(kCoded)) return;
-    const Span<const T> v = core.leaves.shapes(static_cast<const Node<W> &>(leaf));
+    const std::size_t count = leaf.leaf().count;
     struct Sides {
       double x0, y0, x1, y1;
     } boxes[kCoded]; // (uninitialized: a Box would start empty)
     Box all;
-    for (std::size_t i = 0; i < v.size(); ++i) {
-      const Box b = box_of(core.traits, v[i]);
+    for (std::size_t i = 0; i < count; ++i) {
+      const Box b = box_at(i);
       boxes[i] = Sides{b.x0, b.y0, b.x1, b.y1};
       all.extend(b);
     }
@@ -2203,9 +2204,28 @@ template <class T, class Tr, int W> void make_summary(Core<T, Tr, W> &core, int 
     f.sx = kx > 0 && kx < 1e30 ? float(kx) * (1 - 1e-6f) : 0;
     f.sy = ky > 0 && ky < 1e30 ? float(ky) * (1 - 1e-6f) : 0;
     leaf.set_frame(f);
-    for (std::size_t i = 0; i < v.size(); ++i)
+    for (std::size_t i = 0; i < count; ++i)
       leaf.set_codes(int(i), Node<W>::codes_of(Box{boxes[i].x0, boxes[i].y0, boxes[i].x1, boxes[i].y1}, f));
-    leaf.set_coded(int(v.size()));
+    leaf.set_coded(int(count));
+  } else {
+    (void)core;
+    (void)n;
+    (void)box_at;
+  }
+}
+/// make_summary() from the leaf's shapes' boxes.
+template <class T, class Tr, int W> void make_summary(Core<T, Tr, W> &core, int n) {
+  if constexpr (Node<W>::kCoded > 0) {
+    const Node<W> &leaf = core.nodes.node(n);
+    if (!leaf.is_leaf() || !leaf.leaf().has_slot()) {
+      make_summary(core, n, [](std::size_t) { return Box(); }); // (turns the summary off)
+      return;
+    }
+    const Span<const T> v = core.leaves.shapes(leaf);
+    make_summary(core, n, [&](std::size_t i) { return box_of(core.traits, v[i]); });
+  } else {
+    (void)core;
+    (void)n;
   }
 }
 
@@ -2876,6 +2896,85 @@ enum class Cut {
   in_order ///< InOrderRule: iteration order survives (erase's repairs)
 };
 
+/// build_at()'s course-rule build by the shared loop.
+template <class T, class Tr, int W> void build_by_course_rule(Core<T, Tr, W> &core, int at, std::vector<Tagged<T>> &shapes) {
+  // Threads inserting into disjoint subtrees at once (section 8b) cannot
+  // share the tree's scratch memory.
+  BuildScratch<T, Tr> own;
+  BuildScratch<T, Tr> &scratch = core.nodes.shared() ? own : core.scratch.value;
+  CourseRule<T, Tr, W> rule(core.traits,
+                            fill_items(core, scratch.items, shapes.size(), [&](std::size_t i) -> const T & { return shapes[i].shape; }),
+                            &shapes, core.counts());
+  std::vector<BuildTask<CourseState>> &tasks = scratch.tasks;
+  tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule<T, Tr, W>::root_state()});
+  build_top_down(core, tasks, rule, nullptr);
+}
+
+/// The course rule's build at widths other than 3 where it makes one node
+/// over two leaves, as a leaf's overflow split does (build_at): the tree
+/// the shared loop makes, node for node and shape for shape, without its
+/// general machinery (the items' copies of the shapes, the task stack, a
+/// box of every shape computed three times). The two groups come from the
+/// same selection, on keys that hold a centre and an input position where
+/// the loop's items hold the shape: the same comparisons, so the same
+/// order. False, having done nothing, when the build is not of that form.
+/// If it throws, the nodes and slots it made hang under `at`.
+template <class T, class Tr, int W> bool split_in_two(Core<T, Tr, W> &core, int at, std::vector<Tagged<T>> &shapes) {
+  NodeStore<W> &nodes = core.nodes;
+  const std::size_t m = shapes.size();
+  const int depth = nodes.info(at).depth;
+  if (m < 2 || core.is_leaf_size(m, depth)) return false;
+  std::size_t size[W];
+  core.counts().sizes(m, depth, size);
+  if ((W > 2 && size[W > 2 ? 2 : 0] != 0) || !core.is_leaf_size(size[0], depth + 1) || !core.is_leaf_size(size[1], depth + 1))
+    return false;
+  struct SplitKey {
+    XY c;
+    std::uint32_t index;
+    const XY &centre() const { return c; }
+  };
+  struct Sides {
+    double x0, y0, x1, y1;
+  };
+  InlineVector<SplitKey, 72> keys;
+  InlineVector<Sides, 72> boxes; // (Sides: a Box would start empty, 72 times)
+  keys.reserve(m);
+  boxes.reserve(m);
+  Box all;
+  for (std::size_t i = 0; i < m; ++i) {
+    keys.push_back(SplitKey{XY::of(core.traits.center(shapes[i].shape)), std::uint32_t(i)});
+    const Box b = box_of(core.traits, shapes[i].shape);
+    boxes.push_back(Sides{b.x0, b.y0, b.x1, b.y1});
+    all.extend(b);
+  }
+  auto box = [&](std::uint32_t i) { return Box{boxes[i].x0, boxes[i].y0, boxes[i].x1, boxes[i].y1}; };
+  all = core.fat(all);
+  nodes.set_box(at, all);
+  nodes.info(at).count = m;
+  if (all.dx() >= all.dy())
+    select_nth(keys.begin(), keys.begin() + long(size[0]), keys.end(), Order<0, true>());
+  else
+    select_nth(keys.begin(), keys.begin() + long(size[0]), keys.end(), Order<1, true>());
+  int child[2];
+  for (int g = 0; g < 2; ++g) {
+    child[g] = core.new_node(depth + 1, at, g);
+    nodes.node(at).set_child(g, child[g]);
+    nodes.node(at).num_children = g + 1;
+  }
+  for (int g = 0; g < 2; ++g) {
+    const SplitKey *first = keys.begin() + (g == 0 ? 0 : long(size[0]));
+    Box group;
+    for (std::size_t i = 0; i < size[g]; ++i) group.extend(box(first[i].index));
+    nodes.set_box(child[g], core.fat(group));
+    nodes.info(child[g]).count = size[g];
+    core.leaves.fill(
+        nodes.node(child[g]), child[g], size[g], [&](std::size_t i) -> T & { return shapes[first[i].index].shape; },
+        [&](std::size_t i) { return shapes[first[i].index].id; });
+    make_summary(core, child[g], [&](std::size_t i) { return box(first[i].index); });
+  }
+  return true;
+}
+
 /// The one entry for building a subtree: at leaf `at` (owning no slot),
 /// from `shapes` (reordered). If it throws, the nodes and slots it made
 /// hang under `at` (free_subtree gives them back).
@@ -2890,16 +2989,10 @@ template <class T, class Tr, int W> void build_at(Core<T, Tr, W> &core, int at, 
     std::vector<BuildTask<typename SahRule<T, Tr, W>::State>> tasks{{at, 0, shapes.size(), -1, SahRule<T, Tr, W>::root_state()}};
     build_top_down(core, tasks, rule, nullptr);
   } else {
-    // Threads inserting into disjoint subtrees at once (section 8b) cannot
-    // share the tree's scratch memory.
-    BuildScratch<T, Tr> own;
-    BuildScratch<T, Tr> &scratch = core.nodes.shared() ? own : core.scratch.value;
-    CourseRule<T, Tr, W> rule(core.traits,
-                              fill_items(core, scratch.items, shapes.size(), [&](std::size_t i) -> const T & { return shapes[i].shape; }),
-                              &shapes, core.counts());
-    std::vector<BuildTask<CourseState>> &tasks = scratch.tasks;
-    tasks.assign(1, {at, 0, shapes.size(), -1, CourseRule<T, Tr, W>::root_state()});
-    build_top_down(core, tasks, rule, nullptr);
+    if constexpr (W != kCourseWidth) {
+      if (split_in_two(core, at, shapes)) return;
+    }
+    build_by_course_rule(core, at, shapes);
   }
 }
 
