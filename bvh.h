@@ -2926,8 +2926,9 @@ template <class T, class Tr, int W> bool split_in_two(Core<T, Tr, W> &core, int 
   if (m < 2 || core.is_leaf_size(m, depth)) return false;
   std::size_t size[W];
   core.counts().sizes(m, depth, size);
-  if ((W > 2 && size[W > 2 ? 2 : 0] != 0) || !core.is_leaf_size(size[0], depth + 1) || !core.is_leaf_size(size[1], depth + 1))
-    return false;
+  bool two_groups = true;
+  if constexpr (W > 2) two_groups = size[2] == 0;
+  if (!two_groups || !core.is_leaf_size(size[0], depth + 1) || !core.is_leaf_size(size[1], depth + 1)) return false;
   struct SplitKey {
     XY c;
     std::uint32_t index;
