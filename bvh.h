@@ -2173,6 +2173,14 @@ template <class T, class Tr, int W> struct Core {
   }
 };
 
+/// A box's four sides without Box's constructor, which starts empty: for
+/// arrays of boxes that are written before they are read.
+struct Sides {
+  double x0, y0, x1, y1;
+  static Sides of(const Box &b) { return Sides{b.x0, b.y0, b.x1, b.y1}; }
+  Box box() const { return Box{x0, y0, x1, y1}; }
+};
+
 /// Recomputes leaf n's summary (Node::coded()) from its shapes: the frame
 /// is their boxes' union with an eighth of its size to spare on each side,
 /// so that most later appends fit in it. A leaf of more shapes than a
@@ -2185,13 +2193,11 @@ template <class T, class Tr, int W, class BoxAt> void make_summary(Core<T, Tr, W
     leaf.set_coded(0);
     if (!leaf.is_leaf() || !leaf.leaf().has_slot() || leaf.leaf().count > std::uint32_t(kCoded)) return;
     const std::size_t count = leaf.leaf().count;
-    struct Sides {
-      double x0, y0, x1, y1;
-    } boxes[kCoded]; // (uninitialized: a Box would start empty)
+    Sides boxes[kCoded];
     Box all;
     for (std::size_t i = 0; i < count; ++i) {
       const Box b = box_at(i);
-      boxes[i] = Sides{b.x0, b.y0, b.x1, b.y1};
+      boxes[i] = Sides::of(b);
       all.extend(b);
     }
     typename Node<W>::Frame f;
@@ -2205,7 +2211,7 @@ template <class T, class Tr, int W, class BoxAt> void make_summary(Core<T, Tr, W
     f.sy = ky > 0 && ky < 1e30 ? float(ky) * (1 - 1e-6f) : 0;
     leaf.set_frame(f);
     for (std::size_t i = 0; i < count; ++i)
-      leaf.set_codes(int(i), Node<W>::codes_of(Box{boxes[i].x0, boxes[i].y0, boxes[i].x1, boxes[i].y1}, f));
+      leaf.set_codes(int(i), Node<W>::codes_of(boxes[i].box(), f));
     leaf.set_coded(int(count));
   } else {
     (void)core;
@@ -2217,11 +2223,8 @@ template <class T, class Tr, int W, class BoxAt> void make_summary(Core<T, Tr, W
 template <class T, class Tr, int W> void make_summary(Core<T, Tr, W> &core, int n) {
   if constexpr (Node<W>::kCoded > 0) {
     const Node<W> &leaf = core.nodes.node(n);
-    if (!leaf.is_leaf() || !leaf.leaf().has_slot()) {
-      make_summary(core, n, [](std::size_t) { return Box(); }); // (turns the summary off)
-      return;
-    }
-    const Span<const T> v = core.leaves.shapes(leaf);
+    // (box_at is called only for a leaf with a slot)
+    const T *v = leaf.is_leaf() && leaf.leaf().has_slot() ? core.leaves.shapes(leaf).begin() : nullptr;
     make_summary(core, n, [&](std::size_t i) { return box_of(core.traits, v[i]); });
   } else {
     (void)core;
@@ -2934,21 +2937,17 @@ template <class T, class Tr, int W> bool split_in_two(Core<T, Tr, W> &core, int 
     std::uint32_t index;
     const XY &centre() const { return c; }
   };
-  struct Sides {
-    double x0, y0, x1, y1;
-  };
   InlineVector<SplitKey, 72> keys;
-  InlineVector<Sides, 72> boxes; // (Sides: a Box would start empty, 72 times)
+  InlineVector<Sides, 72> boxes;
   keys.reserve(m);
   boxes.reserve(m);
   Box all;
   for (std::size_t i = 0; i < m; ++i) {
     keys.push_back(SplitKey{XY::of(core.traits.center(shapes[i].shape)), std::uint32_t(i)});
     const Box b = box_of(core.traits, shapes[i].shape);
-    boxes.push_back(Sides{b.x0, b.y0, b.x1, b.y1});
+    boxes.push_back(Sides::of(b));
     all.extend(b);
   }
-  auto box = [&](std::uint32_t i) { return Box{boxes[i].x0, boxes[i].y0, boxes[i].x1, boxes[i].y1}; };
   all = core.fat(all);
   nodes.set_box(at, all);
   nodes.info(at).count = m;
@@ -2965,13 +2964,13 @@ template <class T, class Tr, int W> bool split_in_two(Core<T, Tr, W> &core, int 
   for (int g = 0; g < 2; ++g) {
     const SplitKey *first = keys.begin() + (g == 0 ? 0 : long(size[0]));
     Box group;
-    for (std::size_t i = 0; i < size[g]; ++i) group.extend(box(first[i].index));
+    for (std::size_t i = 0; i < size[g]; ++i) group.extend(boxes[first[i].index].box());
     nodes.set_box(child[g], core.fat(group));
     nodes.info(child[g]).count = size[g];
     core.leaves.fill(
         nodes.node(child[g]), child[g], size[g], [&](std::size_t i) -> T & { return shapes[first[i].index].shape; },
         [&](std::size_t i) { return shapes[first[i].index].id; });
-    make_summary(core, child[g], [&](std::size_t i) { return box(first[i].index); });
+    make_summary(core, child[g], [&](std::size_t i) { return boxes[first[i].index].box(); });
   }
   return true;
 }
