@@ -37,6 +37,9 @@ inline void lap(int step, double) {
 // scaled-down runs (valgrind's, the sanitizers') take them on small trees.
 #define BVH_DISJOINT_LANES_MIN 512
 #define BVH_DISJOINT_SWEEP_MIN 512
+// Interleaved searches, and one thread's batches, from trees of 64 shapes
+// (bvh.h's default: 32,768).
+#define BVH_DISJOINT_INTERLEAVE_MIN 64
 
 #include "bvh.h"
 #include "check.h"

@@ -408,6 +408,8 @@ template <class T, int W = 3> void queries_against_brute_force(unsigned seed) {
       tree.construct(shapes);
     else
       for (const T &s : shapes) tree.insert(s);
+    std::vector<T> probes; // collisions(): every probe at once, interleaved
+    std::vector<bool> expected;
     for (int q = 0; q < 40; ++q) {
       // query(box)
       const Point a(make.coord(-50, 1050), make.coord(-50, 1050));
@@ -427,6 +429,8 @@ template <class T, int W = 3> void queries_against_brute_force(unsigned seed) {
         if (model_intersect(s, probe)) want.push_back(s);
       CHECK(same_multiset(got, want));
       CHECK_EQ(tree.collision(probe), !want.empty());
+      probes.push_back(probe);
+      expected.push_back(!want.empty());
       // early stop: f returning false ends the search after one shape
       std::size_t calls = 0;
       tree.query(probe, [&](const T &) { return ++calls < 1; });
@@ -459,6 +463,11 @@ template <class T, int W = 3> void queries_against_brute_force(unsigned seed) {
         CHECK_EQ(ray_hit(p, dir, *hit), t);
       }
     }
+    for (std::size_t i = 0; i < shapes.size() && i < 24; ++i) { // stored shapes: hits
+      probes.push_back(shapes[i]);
+      expected.push_back(true);
+    }
+    CHECK(tree.collisions(probes) == expected);
   }
 }
 
