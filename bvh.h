@@ -5538,7 +5538,9 @@ public:
   /// insertions with the same handles in the same order, hence the same
   /// iteration order and statistics. The candidates are tested in batches
   /// against the tree as it stood at each batch's start, in parallel, then
-  /// among themselves (detail::insert_disjoint). An exception from
+  /// among themselves (detail::insert_disjoint); on a large tree each
+  /// thread's searches run interleaved (collisions()), so that even one
+  /// thread is faster than the loop there. An exception from
   /// intersect() (which may be called on pairs the loop would not compare)
   /// or from an allocation reaches the caller as itself; the tree is then
   /// valid and holds what the loop holds after some first k candidates: k
