@@ -3742,6 +3742,21 @@ template <int W, class F> BVH_ALWAYS_INLINE bool each_candidate(const Node<W> &n
   return true;
 }
 
+/// collides()'s visit of inner node `node`: the children to enter, as
+/// walk()'s visit result. Children holding the probe's centre go first
+/// where leaves have no summary: there a leaf visit reads every shape, and
+/// a hit is likely in those. A summarized leaf is cheap to visit, and the
+/// second test a node would cost more than the order saves.
+template <int W> BVH_ALWAYS_INLINE unsigned collision_children(const Node<W> &node, const Probe &probe) {
+  if constexpr (Node<W>::kCoded > 0) {
+    return child_hits(node, probe);
+  } else {
+    unsigned hits, near;
+    child_masks(node, probe, hits, near);
+    return hits | near << kFirst; // near is a subset of hits
+  }
+}
+
 /// True iff some stored shape intersects `shape` (touching counts).
 /// Subtrees whose box misses the shape's box are never visited; the final
 /// test is T's intersect().
@@ -3758,17 +3773,7 @@ template <class T, class Tr, int W> bool collides(const Core<T, Tr, W> &core, co
           each_candidate(node, v.size(), box, [&](std::size_t i) { return !core.traits.intersect(v[i], shape); });
       return missed ? 0 : kStop;
     }
-    // Children holding the probe's centre first, where leaves have no
-    // summary: there a leaf visit reads every shape, and a hit is likely
-    // in those. A summarized leaf is cheap to visit, and the second test
-    // a node would cost more than the order saves.
-    if constexpr (Node<W>::kCoded > 0) {
-      return child_hits(node, probe);
-    } else {
-      unsigned hits, near;
-      child_masks(node, probe, hits, near);
-      return hits | near << kFirst; // near is a subset of hits
-    }
+    return collision_children(node, probe);
   });
 }
 
@@ -3832,14 +3837,7 @@ void collides_each(const Core<T, Tr, W> &core, const T *shapes, std::size_t coun
     } else {
       const Node<W> &node = core.nodes.node(s.node);
       if (!node.is_leaf()) {
-        unsigned enter_bits; // collides()'s choice
-        if constexpr (Node<W>::kCoded > 0) {
-          enter_bits = child_hits(node, s.probe);
-        } else {
-          unsigned hits, near;
-          child_masks(node, s.probe, hits, near);
-          enter_bits = hits | near << kFirst;
-        }
+        const unsigned enter_bits = collision_children(node, s.probe);
         if (enter_bits != 0) {
           enter(s, enter_children(s.stack, node, enter_bits));
           return false;
@@ -4671,60 +4669,21 @@ template <class T, class Tr, int W> void insert_new(Core<T, Tr, W> &core, const 
   }
 }
 
+/// The loop's step for candidate i: inserted (and i kept) unless it
+/// intersects a stored shape.
+template <class T, class Tr, int W>
+void decide_as_the_loop(Core<T, Tr, W> &core, const std::vector<T> &candidates, std::size_t i,
+                        std::vector<std::size_t> &kept) {
+  if (collides(core, candidates[i])) return;
+  insert_new(core, candidates[i]);
+  kept.push_back(i);
+}
+
 /// A survivor of step 1 for step 2's sweep: its box rounded outwards to
 /// float and its rank among the batch's survivors.
 struct SweepBox {
   float lo_x, lo_y, hi_x, hi_y;
   std::uint32_t rank;
-};
-
-/// Steps 2 and 3 for few survivors: the boxes of the batch's survivors
-/// kept so far (rounded outwards to float, as collides()'s are), in rows,
-/// so that a survivor's box is tested against four of them at once.
-class KeptBoxes {
-public:
-  void clear() {
-    for (std::vector<float> *row : {&lo_x_, &lo_y_, &hi_x_, &hi_y_}) row->clear();
-    size_ = 0;
-  }
-  /// Adds box b (low x, low y, high x, high y) as the next one.
-  void push(const float b[4]) {
-    if (size_ % 4 == 0) { // four more places, each a box that meets nothing
-      const float inf = std::numeric_limits<float>::infinity();
-      lo_x_.insert(lo_x_.end(), 4, inf);
-      lo_y_.insert(lo_y_.end(), 4, inf);
-      hi_x_.insert(hi_x_.end(), 4, -inf);
-      hi_y_.insert(hi_y_.end(), 4, -inf);
-    }
-    lo_x_[size_] = b[0];
-    lo_y_[size_] = b[1];
-    hi_x_[size_] = b[2];
-    hi_y_[size_] = b[3];
-    ++size_;
-  }
-  /// Calls f(i) for each box i that meets b (boundaries count), ascending,
-  /// until f returns true; then returns true.
-  template <class F> bool any(const float b[4], F &&f) const {
-    for (std::size_t g = 0; g < size_; g += 4) {
-#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
-      const __m128 meets =
-          _mm_and_ps(_mm_and_ps(_mm_cmple_ps(_mm_loadu_ps(&lo_x_[g]), _mm_set1_ps(b[2])),
-                                _mm_cmple_ps(_mm_set1_ps(b[0]), _mm_loadu_ps(&hi_x_[g]))),
-                     _mm_and_ps(_mm_cmple_ps(_mm_loadu_ps(&lo_y_[g]), _mm_set1_ps(b[3])),
-                                _mm_cmple_ps(_mm_set1_ps(b[1]), _mm_loadu_ps(&hi_y_[g]))));
-      for (unsigned bits = unsigned(_mm_movemask_ps(meets)); bits != 0; bits &= bits - 1)
-        if (f(g + std::size_t(lowest_bit(bits)))) return true;
-#else
-      for (std::size_t i = g; i < g + 4; ++i)
-        if (lo_x_[i] <= b[2] && b[0] <= hi_x_[i] && lo_y_[i] <= b[3] && b[1] <= hi_y_[i] && f(i)) return true;
-#endif
-    }
-    return false;
-  }
-
-private:
-  std::vector<float> lo_x_, lo_y_, hi_x_, hi_y_;
-  std::size_t size_ = 0;
 };
 
 /// Step 2: the pairs (earlier, later) of survivors, by rank, that
@@ -5082,16 +5041,12 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
   std::vector<unsigned char> hit;
   std::vector<std::size_t> survivors, keep;
   std::vector<unsigned char> survivor_kept;
-  KeptBoxes kept_boxes;
+  std::vector<SweepBox> kept_boxes;
   DisjointClock clock;
   const std::size_t kInterleaveMin = BVH_DISJOINT_INTERLEAVE_MIN;
   for (std::size_t start = 0; start < n;) {
     if (serial && core.size < kInterleaveMin) { // the loop itself
-      if (!collides(core, candidates[start])) {
-        insert_new(core, candidates[start]);
-        kept.push_back(start);
-      }
-      ++start;
+      decide_as_the_loop(core, candidates, start++, kept);
       continue;
     }
     const std::size_t m = std::min(batch, n - start);
@@ -5119,14 +5074,20 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
       keep.clear();
       if (s < kPairwise) {
         clock.lap(0);
-        kept_boxes.clear();
+        kept_boxes.clear(); // keep[i]'s box, rounded once
         for (std::size_t r = 0; r < s; ++r) {
           const T &c = candidates[survivors[r]];
           float b[4];
           round_out(box_of(core.traits, c), b);
-          if (kept_boxes.any(b, [&](std::size_t i) { return core.traits.intersect(candidates[keep[i]], c); })) continue;
+          bool free = true;
+          for (std::size_t i = 0; i < keep.size() && free; ++i) {
+            const SweepBox &g = kept_boxes[i];
+            free = !(g.lo_x <= b[2] && b[0] <= g.hi_x && g.lo_y <= b[3] && b[1] <= g.hi_y &&
+                     core.traits.intersect(candidates[keep[i]], c));
+          }
+          if (!free) continue;
           keep.push_back(survivors[r]);
-          kept_boxes.push(b);
+          kept_boxes.push_back(SweepBox{b[0], b[1], b[2], b[3], std::uint32_t(r)});
         }
       } else {
         const auto pairs = surviving_pairs(core.traits, candidates, survivors, crew, threads, clock);
@@ -5145,11 +5106,7 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
       // again as the loop decides it, one candidate at a time, so that the
       // loop's candidate throws (or, if nothing throws again, the batch
       // completes). Nothing of the batch was inserted yet.
-      for (std::size_t i = start; i < start + m; ++i)
-        if (!collides(core, candidates[i])) {
-          insert_new(core, candidates[i]);
-          kept.push_back(i);
-        }
+      for (std::size_t i = start; i < start + m; ++i) decide_as_the_loop(core, candidates, i, kept);
       start += m;
       continue;
     }
