@@ -4686,6 +4686,47 @@ struct SweepBox {
   std::uint32_t rank;
 };
 
+/// Step 3's kept survivors of a batch, as float boxes in rows of four, so
+/// that one SIMD pass tests a survivor's box against four of them.
+class KeptBoxes {
+public:
+  void clear() { size_ = 0; }
+  /// Adds box b (lo x, lo y, hi x, hi y) as box size().
+  void push_back(const float b[4]) {
+    if (size_ % 4 == 0)
+      for (std::vector<float> *row : {&lo_x_, &lo_y_, &hi_x_, &hi_y_}) row->resize(size_ + 4);
+    lo_x_[size_] = b[0];
+    lo_y_[size_] = b[1];
+    hi_x_[size_] = b[2];
+    hi_y_[size_] = b[3];
+    ++size_;
+  }
+  /// False when exact(i) is true for some box i that meets box b (in
+  /// ascending i, stopping there); else true.
+  template <class Exact> BVH_ALWAYS_INLINE bool none_meets(const float b[4], Exact &&exact) const {
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+    const __m128 bx0 = _mm_set1_ps(b[0]), by0 = _mm_set1_ps(b[1]), bx1 = _mm_set1_ps(b[2]), by1 = _mm_set1_ps(b[3]);
+    for (std::size_t g = 0; g < size_; g += 4) {
+      const __m128 meets = _mm_and_ps(
+          _mm_and_ps(_mm_cmple_ps(_mm_loadu_ps(&lo_x_[g]), bx1), _mm_cmple_ps(bx0, _mm_loadu_ps(&hi_x_[g]))),
+          _mm_and_ps(_mm_cmple_ps(_mm_loadu_ps(&lo_y_[g]), by1), _mm_cmple_ps(by0, _mm_loadu_ps(&hi_y_[g]))));
+      unsigned bits = unsigned(_mm_movemask_ps(meets));
+      if (size_ - g < 4) bits &= (1u << (size_ - g)) - 1;
+      for (; bits != 0; bits &= bits - 1)
+        if (exact(g + std::size_t(lowest_bit(bits)))) return false;
+    }
+#else
+    for (std::size_t i = 0; i < size_; ++i)
+      if (lo_x_[i] <= b[2] && b[0] <= hi_x_[i] && lo_y_[i] <= b[3] && b[1] <= hi_y_[i] && exact(i)) return false;
+#endif
+    return true;
+  }
+
+private:
+  std::vector<float> lo_x_, lo_y_, hi_x_, hi_y_; // (lengths: size_ rounded up to 4)
+  std::size_t size_ = 0;
+};
+
 /// Step 2: the pairs (earlier, later) of survivors, by rank, that
 /// intersect, sorted by the later one. The sweep sorts the boxes by their
 /// left side; each box then meets only the boxes after it that start before
@@ -5030,10 +5071,13 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
   // Batch sizes: starting small (on an empty tree all of the first batch
   // survives), within [kMin, kMax]; step 2 runs from kPairwise survivors.
   // On one thread a batch is only there so that its searches can run
-  // interleaved (collides_each): a small one keeps step 2 short and the
-  // nodes those searches brought in still cached when step 4 inserts.
+  // interleaved (collides_each), and steps 2 and 3 are one: each survivor
+  // is tested against the batch's kept ones (KeptBoxes), which costs the
+  // square of the survivors, with no sort and no pair list. A small batch
+  // keeps that short and the nodes its searches brought in still cached
+  // when step 4 inserts.
   const bool serial = threads == 1;
-  const std::size_t kSerialBatch = 256;
+  const std::size_t kSerialBatch = 128;
   const std::size_t kMin = serial ? kSerialBatch : 64 * std::size_t(threads);
   const std::size_t kMax = serial ? kSerialBatch : std::size_t(1) << 17, kPairwise = 32;
   const std::size_t target = 2048 * std::size_t(threads); // survivors a batch aims at
@@ -5041,7 +5085,7 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
   std::vector<unsigned char> hit;
   std::vector<std::size_t> survivors, keep;
   std::vector<unsigned char> survivor_kept;
-  std::vector<SweepBox> kept_boxes;
+  KeptBoxes kept_boxes; // keep[i]'s box, rounded once
   DisjointClock clock;
   const std::size_t kInterleaveMin = BVH_DISJOINT_INTERLEAVE_MIN;
   for (std::size_t start = 0; start < n;) {
@@ -5072,22 +5116,18 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
       // 2. and 3. Among themselves, in input order.
       survivor_kept.assign(s, 0);
       keep.clear();
-      if (s < kPairwise) {
+      if (s < kPairwise || serial) {
         clock.lap(0);
-        kept_boxes.clear(); // keep[i]'s box, rounded once
+        kept_boxes.clear();
         for (std::size_t r = 0; r < s; ++r) {
           const T &c = candidates[survivors[r]];
           float b[4];
           round_out(box_of(core.traits, c), b);
-          bool free = true;
-          for (std::size_t i = 0; i < keep.size() && free; ++i) {
-            const SweepBox &g = kept_boxes[i];
-            free = !(g.lo_x <= b[2] && b[0] <= g.hi_x && g.lo_y <= b[3] && b[1] <= g.hi_y &&
-                     core.traits.intersect(candidates[keep[i]], c));
-          }
+          const bool free =
+              kept_boxes.none_meets(b, [&](std::size_t i) { return core.traits.intersect(candidates[keep[i]], c); });
           if (!free) continue;
           keep.push_back(survivors[r]);
-          kept_boxes.push_back(SweepBox{b[0], b[1], b[2], b[3], std::uint32_t(r)});
+          kept_boxes.push_back(b);
         }
       } else {
         const auto pairs = surviving_pairs(core.traits, candidates, survivors, crew, threads, clock);

@@ -4,6 +4,7 @@
 // insert/erase sequences. Seeds are printed on failure (BVH_SEED changes
 // them; BVH_TEST_SCALE shrinks the runs for valgrind and the sanitizers).
 #include <algorithm>
+#include <array>
 #include <cstdlib>
 #include <cmath>
 #include <iterator>
@@ -179,6 +180,62 @@ TEST(leaf_pool_slots_are_nearly_full) {
     const std::uint32_t c = Pool::class_for(n);
     CHECK(Pool::capacity_of(c) >= n && (c == 0 || Pool::capacity_of(c - 1) < n));
     CHECK(n == 3 || (Pool::kSteps + 1) * n > Pool::kSteps * Pool::capacity_of(c));
+  }
+}
+
+TEST(kept_boxes_match_a_scan) {
+  // insert_disjoint's step 3 on one thread: none_meets(b, exact) calls
+  // exact(i) on the kept boxes that meet b, ascending, until one is true.
+  // The model: the same in plain comparisons over a list (NaN sides meet
+  // nothing). Runs with SSE2 and, in the portable build, without.
+  const unsigned seed = base_seed() + 2150;
+  note("BVH_SEED=" + std::to_string(seed));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> at(0, 20), size(0, 4);
+  bvh::detail::KeptBoxes kept;
+  for (int round = 0; round < scaled(400); ++round) {
+    kept.clear();
+    std::vector<std::array<float, 4>> model;
+    const int n = int(rng() % 40);
+    const auto random_box = [&] {
+      std::array<float, 4> b;
+      b[0] = at(rng);
+      b[1] = at(rng);
+      b[2] = b[0] + size(rng);
+      b[3] = b[1] + size(rng);
+      if (rng() % 50 == 0) b[rng() % 4] = std::numeric_limits<float>::quiet_NaN();
+      return b;
+    };
+    for (int i = 0; i < n; ++i) {
+      model.push_back(random_box());
+      kept.push_back(model.back().data());
+    }
+    for (int q = 0; q < 20; ++q) {
+      std::array<float, 4> b = random_box();
+      if (!model.empty() && q % 2 == 0) { // touching a kept box on one side (touching counts)
+        const std::array<float, 4> &k = model[rng() % model.size()];
+        const unsigned side = rng() % 4;
+        if (side == 0) b = {k[2], k[1], k[2] + 1, k[3]};
+        if (side == 1) b = {k[0] - 1, k[1], k[0], k[3]};
+        if (side == 2) b = {k[0], k[3], k[2], k[3] + 1};
+        if (side == 3) b = {k[0], k[1] - 1, k[2], k[1]};
+      }
+      const unsigned pick = rng() % 4; // exact(i) is true for i % 4 == pick (4: never)
+      std::vector<std::size_t> asked, expect;
+      bool expect_none = true;
+      for (std::size_t i = 0; i < model.size() && expect_none; ++i) {
+        const std::array<float, 4> &k = model[i];
+        if (!(k[0] <= b[2] && b[0] <= k[2] && k[1] <= b[3] && b[1] <= k[3])) continue;
+        expect.push_back(i);
+        expect_none = i % 4 != pick;
+      }
+      const bool none = kept.none_meets(b.data(), [&](std::size_t i) {
+        asked.push_back(i);
+        return i % 4 == pick;
+      });
+      CHECK(none == expect_none);
+      CHECK(asked == expect);
+    }
   }
 }
 
