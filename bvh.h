@@ -118,12 +118,16 @@
 
 // The one traversal routine is inlined into each query that uses it, so
 // that its visit's state (a query's probe) stays in registers.
+// BVH_NOINLINE keeps a small function out of the queries that call it
+// once each, where inlining it only crowds their loops' registers.
 #if defined(__GNUC__)
 #define BVH_ALWAYS_INLINE inline __attribute__((always_inline))
 #define BVH_LAMBDA_INLINE __attribute__((always_inline))
+#define BVH_NOINLINE __attribute__((noinline))
 #else
 #define BVH_ALWAYS_INLINE inline
 #define BVH_LAMBDA_INLINE
+#define BVH_NOINLINE
 #endif
 
 namespace bvh {
@@ -1133,8 +1137,8 @@ private:
 /// A query box rounded outwards to float, and its centre, as child_masks
 /// reads them.
 struct Probe {
-  /// The probe of `box`.
-  static Probe around(const Box &box) {
+  /// The probe of `box` (once per query: out of line, see BVH_NOINLINE).
+  static BVH_NOINLINE Probe around(const Box &box) {
     float f[4];
     round_out(box, f);
     return Probe(f[0], f[1], f[2], f[3], 0.5f * (f[0] + f[2]), 0.5f * (f[1] + f[3]));
@@ -1776,6 +1780,14 @@ public:
   /// The number of shapes in the slot itself (validate compares it with
   /// the leaf's record).
   template <int W> std::size_t slot_size(const Node<W> &leaf) const { return pool_.size(pool_slot(leaf.leaf())); }
+  /// Asks the cache for where leaf `leaf` (with a slot) appends its next
+  /// shape and id.
+  template <int W> void prefetch_end(const Node<W> &leaf) const {
+    const typename LeafPool<T>::Slot s = pool_slot(leaf.leaf());
+    const std::size_t n = pool_.size(s);
+    prefetch_lines(pool_.data(s) + n, sizeof(T));
+    prefetch_lines(pool_.ids(s) + n, sizeof(std::uint32_t));
+  }
 
   LeafStore() = default;
   /// Deep copy, with the table if it is built.
@@ -3385,41 +3397,16 @@ template <class T, class Tr, int W> void rebalance(Core<T, Tr, W> &core, int sca
   }
 }
 
-/// The descent of insert_unbalanced() from node `top` down: by least area
-/// growth (choose_child), adding `box` (the shape's, fattened) to every
-/// box and the shape to every count on the way, then adding the shape to
-/// the leaf reached, which splits by the build rule when it holds more
-/// than split_threshold shapes above depth_limit. Returns the node the
-/// shape went to (the leaf, or the subtree its split made); nothing above
-/// `top` is read or written (section 8b runs it on several subtrees at
-/// once). Strong: if it throws, the counts and boxes from `top` down are
-/// undone (a split is built beside the leaf, which goes only once the new
-/// subtree is complete).
-/// `*lopsided_above` gets find_scapegoat()'s answer for the path from
-/// `top` down to the leaf's parent, read on the way down (the counts above
-/// the leaf are final there): insert_scapegoat() completes it.
+/// insert_below()'s second half: `shape` (its box `box`, its id `id`)
+/// goes into leaf n, whose count and box the descent from `top` has
+/// already raised (its box was `leaf_box`), which splits by the build rule
+/// when it then holds more than split_threshold shapes above depth_limit.
+/// Returns the node the shape went to. Strong: if it throws, the counts
+/// and boxes from `top` down are undone.
 template <class T, class Tr, int W>
-BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &box, const T &shape, std::uint32_t id,
-                                   int *lopsided_above = nullptr) {
+BVH_ALWAYS_INLINE int insert_at_leaf(Core<T, Tr, W> &core, int top, int n, const Box &leaf_box, const Box &box, const T &shape,
+                                     std::uint32_t id) {
   NodeStore<W> &nodes = core.nodes;
-  const std::size_t smallest = min_rebuild(core);
-  int n = top, above = -1, prev = -1;
-  std::size_t prev_count = 0;
-  Box leaf_box; // the leaf's box before: with a margin it may exceed its shapes'
-  for (;;) {
-    const std::size_t count = ++nodes.info(n).count;
-    if (nodes.node(n).is_leaf()) {
-      leaf_box = nodes.box(n);
-      nodes.extend_box(n, box);
-      break;
-    }
-    if (above < 0 && prev >= 0 && prev_count >= smallest && lopsided(count, prev_count)) above = prev;
-    nodes.extend_box(n, box);
-    prev = n;
-    prev_count = count;
-    n = choose_child(nodes.node(n), box);
-  }
-  if (lopsided_above) *lopsided_above = above;
   try {
     if (!core.is_leaf_size(nodes.info(n).count, nodes.info(n).depth)) {
       // The leaf splits: copies of its shapes and the new one go straight
@@ -3449,6 +3436,43 @@ BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &box
     throw;
   }
   return n;
+}
+
+/// The descent of insert_unbalanced() from node `top` down: by least area
+/// growth (choose_child), adding `box` (the shape's, fattened) to every
+/// box and the shape to every count on the way, then adding the shape to
+/// the leaf reached (insert_at_leaf). Returns the node the shape went to
+/// (the leaf, or the subtree its split made); nothing above `top` is read
+/// or written (section 8b runs it on several subtrees at once). Strong: if
+/// it throws, the counts and boxes from `top` down are undone (a split is
+/// built beside the leaf, which goes only once the new subtree is
+/// complete).
+/// `*lopsided_above` gets find_scapegoat()'s answer for the path from
+/// `top` down to the leaf's parent, read on the way down (the counts above
+/// the leaf are final there): insert_scapegoat() completes it.
+template <class T, class Tr, int W>
+BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &box, const T &shape, std::uint32_t id,
+                                   int *lopsided_above = nullptr) {
+  NodeStore<W> &nodes = core.nodes;
+  const std::size_t smallest = min_rebuild(core);
+  int n = top, above = -1, prev = -1;
+  std::size_t prev_count = 0;
+  Box leaf_box; // the leaf's box before: with a margin it may exceed its shapes'
+  for (;;) {
+    const std::size_t count = ++nodes.info(n).count;
+    if (nodes.node(n).is_leaf()) {
+      leaf_box = nodes.box(n);
+      nodes.extend_box(n, box);
+      break;
+    }
+    if (above < 0 && prev >= 0 && prev_count >= smallest && lopsided(count, prev_count)) above = prev;
+    nodes.extend_box(n, box);
+    prev = n;
+    prev_count = count;
+    n = choose_child(nodes.node(n), box);
+  }
+  if (lopsided_above) *lopsided_above = above;
+  return insert_at_leaf(core, top, n, leaf_box, box, shape, id);
 }
 
 /// insert_shape() without its rebalance: insert_below() from the root (or
@@ -3484,7 +3508,11 @@ BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr, W> &core, const T &shape, st
 /// `lopsided_above`: only the last step, from n's parent to n, is left to
 /// test, since a split or splice changes n but no count above it. It
 /// saves a second walk up the path per insert.
-template <class T, class Tr, int W> int insert_scapegoat(const Core<T, Tr, W> &core, int n, int lopsided_above, int stop = -1) {
+/// `checked`: the invariant below may compare with a walk up (false when
+/// later insertions under way, insert_pipelined's, have raised counts on
+/// the path above).
+template <class T, class Tr, int W>
+int insert_scapegoat(const Core<T, Tr, W> &core, int n, int lopsided_above, int stop = -1, bool checked = true) {
   const NodeStore<W> &nodes = core.nodes;
   int found = lopsided_above;
   if (found < 0) {
@@ -3492,8 +3520,9 @@ template <class T, class Tr, int W> int insert_scapegoat(const Core<T, Tr, W> &c
     if (a != stop && a >= 0 && nodes.info(a).count >= min_rebuild(core) && lopsided(nodes.info(n).count, nodes.info(a).count))
       found = a;
   }
-  BVH_INVARIANT(found == find_scapegoat(core, nodes.info(n).parent, n, false, stop),
+  BVH_INVARIANT(!checked || found == find_scapegoat(core, nodes.info(n).parent, n, false, stop),
                 "the scapegoat read on the way down differs from the walk up");
+  (void)checked;
   return found;
 }
 
@@ -4848,6 +4877,122 @@ void insert_serially(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
   }
 }
 
+/// Step 4 on one thread: keep[i] for each i >= from inserted in order, as
+/// insert_new() one by one inserts them (the same tree, ids and
+/// statistics), with up to kPipe insertions under way at once so that the
+/// cache misses of their descents overlap. An insertion writes a node's
+/// count and box (and its parent's copy of the box) when it steps there,
+/// and reads the node's copies of its children's boxes; a later one steps
+/// at depth D only while every earlier one under way is at depth D + 2 or
+/// deeper, so it reads nothing they have yet to write and writes nothing
+/// they have yet to read. A leaf split changes nothing above the leaf's
+/// parent (margin 0: no box changes), and a later insertion is never that
+/// deep while the split waits. Each insertion finishes at its leaf (push
+/// or split, then its rebalance) only as the oldest under way, and before
+/// a rebuild the later ones are rolled back (their counts and boxes) and
+/// start again. Needs margin 0 and an inner root. If an insertion throws,
+/// the later ones are rolled back and the exception passes on: the tree
+/// then holds the candidates before it, as the loop's does.
+template <class T, class Tr, int W>
+void insert_pipelined(Core<T, Tr, W> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
+                      std::size_t from, std::vector<std::size_t> &kept) {
+  BVH_INVARIANT(core.margin == 0 && core.root >= 0 && !core.nodes.node(core.root).is_leaf(),
+                "insert_pipelined() needs margin 0 and an inner root");
+  constexpr int kPipe = 4;
+  struct Cursor {
+    std::size_t item;      // in keep
+    Box box;               // the shape's
+    int n;                 // the node of its next step, or (at_leaf) the leaf it stepped at
+    int depth;             // n's
+    int prev, above;       // as in insert_below
+    std::size_t prev_count;
+    Box leaf_box;          // (at_leaf) the leaf's box before
+    bool at_leaf;
+  };
+  NodeStore<W> &nodes = core.nodes;
+  const std::size_t smallest = min_rebuild(core);
+  Cursor ring[kPipe];
+  int head = 0, size = 0;
+  const auto at = [&](int k) -> Cursor & { return ring[(head + k) % kPipe]; };
+  const auto start = [&](Cursor &c, std::size_t item) {
+    c.item = item;
+    c.box = box_of(core.traits, candidates[keep[item]]);
+    c.n = core.root;
+    c.depth = 0;
+    c.prev = c.above = -1;
+    c.prev_count = 0;
+    c.at_leaf = false;
+  };
+  // Undoes what cursor c wrote: the counts of the nodes it stepped at,
+  // the leaf's box, and the boxes above refitted (the unions of children
+  // that do not hold its shape).
+  const auto roll_back = [&](const Cursor &c) noexcept {
+    const int last = c.at_leaf ? c.n : nodes.info(c.n).parent; // (-1: no step yet)
+    for (int m = last; m >= 0; m = nodes.info(m).parent) --nodes.info(m).count;
+    if (c.at_leaf) {
+      nodes.set_box(c.n, c.leaf_box);
+      if (nodes.info(c.n).parent >= 0) core.refit_up(nodes.info(c.n).parent);
+    } else if (last >= 0) {
+      core.refit_up(last);
+    }
+  };
+  const auto step = [&](Cursor &c) BVH_LAMBDA_INLINE {
+    const std::size_t count = ++nodes.info(c.n).count;
+    const Node<W> &node = nodes.node(c.n);
+    if (node.is_leaf()) {
+      c.leaf_box = nodes.box(c.n);
+      nodes.extend_box(c.n, c.box);
+      c.at_leaf = true;
+      if (node.leaf().has_slot()) core.leaves.prefetch_end(node);
+      return;
+    }
+    if (c.above < 0 && c.prev >= 0 && c.prev_count >= smallest && lopsided(count, c.prev_count)) c.above = c.prev;
+    nodes.extend_box(c.n, c.box);
+    c.prev = c.n;
+    c.prev_count = count;
+    c.n = choose_child(node, c.box);
+    ++c.depth;
+    prefetch_lines(&nodes.node(c.n), sizeof(Node<W>));
+    prefetch_lines(&nodes.info(c.n), sizeof(Info));
+  };
+  std::size_t next = from;
+  while (size > 0 || next < keep.size()) {
+    int shallowest = std::numeric_limits<int>::max(); // of the earlier ones under way
+    for (int k = 0; k < size; ++k) {
+      Cursor &c = at(k);
+      if (c.at_leaf && k == 0) { // the oldest finishes
+        const std::uint32_t id = core.leaves.new_id();
+        int n;
+        try {
+          n = insert_at_leaf(core, core.root, c.n, c.leaf_box, c.box, candidates[keep[c.item]], id);
+        } catch (...) {
+          core.leaves.free_id(id, core.size == 0);
+          for (int j = size - 1; j >= 1; --j) roll_back(at(j));
+          throw;
+        }
+        ++core.size;
+        kept.push_back(keep[c.item]);
+        const int scapegoat = insert_scapegoat(core, n, c.above, -1, size == 1);
+        if (scapegoat >= 0) { // the later ones start again on the rebuilt tree
+          for (int j = size - 1; j >= 1; --j) roll_back(at(j));
+          rebalance(core, scapegoat, Cut::by_rule);
+          for (int j = 1; j < size; ++j) start(at(j), at(j).item);
+        }
+        head = (head + 1) % kPipe;
+        --size;
+        --k;
+        continue;
+      }
+      if (!c.at_leaf && shallowest >= c.depth + 2) step(c);
+      shallowest = std::min(shallowest, c.depth);
+    }
+    if (next < keep.size() && size < kPipe && shallowest >= 2) {
+      start(at(size), next++);
+      ++size;
+    }
+  }
+}
+
 /// The most nodes and slots one insertion into a subtree of m shapes may
 /// allocate: a split of at most m + 1 shapes and a rebuild of as many
 /// (a build of k shapes makes fewer than 2k nodes and at most k slots).
@@ -4935,6 +5080,11 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
   int depth = 0; // the frontier's: about 16 subtrees a thread
   for (std::size_t lanes = 1; lanes < 16 * std::size_t(threads); lanes *= std::size_t(W)) ++depth;
   for (std::size_t next = 0; next < keep.size();) {
+    if (threads == 1 && core.margin == 0 && core.root >= 0 && !nodes.node(core.root).is_leaf()) {
+      insert_pipelined(core, candidates, keep, next, kept);
+      clock.lap(3);
+      return;
+    }
     if (threads == 1 || core.margin != 0 || core.root < 0 || nodes.node(core.root).is_leaf() || core.size < kLanesMin ||
         keep.size() - next < 64) {
       insert_serially(core, candidates, keep, next, kept);

@@ -523,6 +523,68 @@ TEST(disjoint_rethrows_a_copy_in_the_lanes_and_holds_the_prefix) {
   }
 }
 
+// One thread's step 4 inserts several candidates at once (insert_pipelined):
+// a copy that throws there must leave the loop's tree for the candidates
+// before it, shape for shape and handle for handle (the later ones under
+// way rolled back), and the call after it must go on as the loop does.
+template <int W> void pipelined_insert_throws(unsigned seed) {
+  using Tree = BVH<fragile::OnceFragile, bvh::shape_traits<fragile::OnceFragile>, W>;
+  Maker make(seed);
+  const int split = W == 3 ? 4 : 16;
+  for (int round = 0; round < scaled(6); ++round) {
+    std::vector<fragile::OnceFragile> c;
+    for (const Disk &d : make.scene<Disk>(scaled(3000), round % 2 ? 0.5 : 3.0)) c.push_back(fragile::OnceFragile(d, int(c.size())));
+    std::vector<std::size_t> kept;
+    {
+      Tree loop(split);
+      for (std::size_t i = 0; i < c.size(); ++i)
+        if (!loop.collision(c[i])) {
+          loop.insert(c[i]);
+          kept.push_back(i);
+        }
+    }
+    if (kept.size() < 8) continue;
+    // A kept candidate past the first BVH_DISJOINT_INTERLEAVE_MIN: in a batch.
+    const std::size_t victim = kept[kept.size() / 2 + std::size_t(make.rng() % (kept.size() / 3))];
+    note("BVH_SEED=" + std::to_string(seed) + " width " + std::to_string(W) + " round " + std::to_string(round) +
+         " poisoned " + std::to_string(victim));
+    Tree loop(split), tree(split);
+    for (std::size_t i : kept)
+      if (i < victim) loop.insert(c[i]);
+    fragile::armed() = int(victim);
+    bool thrown = false;
+    try {
+      tree.insert_disjoint(c, 1);
+    } catch (const fragile::CopyBoom &) {
+      thrown = true;
+    }
+    fragile::armed() = -1;
+    CHECK(thrown);
+    std::string why;
+    CHECK(tree.validate(&why));
+    if (!why.empty()) note(why);
+    const auto order = [](const Tree &t) {
+      std::vector<std::pair<int, std::uint32_t>> out;
+      for (auto it = t.begin(); it != t.end(); ++it) out.push_back({it->tag, it.id().id});
+      return out;
+    };
+    CHECK(order(tree) == order(loop));
+    CHECK(tree.height() == loop.height() && tree.node_count() == loop.node_count());
+    const std::vector<std::size_t> rest = tree.insert_disjoint(c, 1);
+    for (std::size_t i = 0; i < c.size(); ++i)
+      if (!loop.collision(c[i])) loop.insert(c[i]);
+    CHECK(rest.size() == kept.size() - std::size_t(std::count_if(kept.begin(), kept.end(), [&](std::size_t i) { return i < victim; })));
+    CHECK(order(tree) == order(loop));
+    CHECK(tree.height() == loop.height() && tree.node_count() == loop.node_count());
+    CHECK(tree.validate());
+  }
+}
+
+TEST(disjoint_one_thread_rethrows_a_copy_and_holds_the_loops_prefix) {
+  pipelined_insert_throws<3>(base_seed() + 680);
+  pipelined_insert_throws<8>(base_seed() + 690);
+}
+
 // ---------------------------------------------------------------------------
 // Const queries from several threads at once, on one tree that nobody
 // changes: each thread's answers must be the one-thread answers (and under
