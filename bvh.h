@@ -3397,6 +3397,46 @@ template <class T, class Tr, int W> void rebalance(Core<T, Tr, W> &core, int sca
   }
 }
 
+/// One step of an insertion's descent at node n: the shape counted and
+/// `box` added there; at an inner node, the lopsided test of the step
+/// from `prev` (find_scapegoat's answer so far in `above`) and n becomes
+/// the child to go on to by least growth (choose_child); at a leaf,
+/// `leaf_box` gets its box before (with a margin it may exceed its
+/// shapes'). Returns true at a leaf. insert_pipelined's step; insert_below
+/// keeps the same loop written out, which GCC compiles shorter
+/// for the course's tree than a loop over this function.
+template <int W>
+BVH_ALWAYS_INLINE bool descend_step(NodeStore<W> &nodes, int &n, int &prev, int &above, std::size_t &prev_count,
+                                    Box &leaf_box, const Box &box, std::size_t smallest) {
+  const std::size_t count = ++nodes.info(n).count;
+  if (nodes.node(n).is_leaf()) {
+    leaf_box = nodes.box(n);
+    nodes.extend_box(n, box);
+    return true;
+  }
+  if (above < 0 && prev >= 0 && prev_count >= smallest && lopsided(count, prev_count)) above = prev;
+  nodes.extend_box(n, box);
+  prev = n;
+  prev_count = count;
+  n = choose_child(nodes.node(n), box);
+  return false;
+}
+
+/// Undoes a descent's steps from node `last` (the last it stepped at) up
+/// to, not including, `stop`: the counts, the leaf's box (when `leaf_box`,
+/// last being the leaf) and the boxes above refitted. Never throws.
+template <class T, class Tr, int W>
+void undo_descent(Core<T, Tr, W> &core, int last, int stop, const Box *leaf_box) noexcept {
+  NodeStore<W> &nodes = core.nodes;
+  for (int m = last; m != stop; m = nodes.info(m).parent) --nodes.info(m).count;
+  if (leaf_box) {
+    nodes.set_box(last, *leaf_box);
+    if (nodes.info(last).parent != stop) core.refit_up(nodes.info(last).parent, stop);
+  } else if (last != stop) {
+    core.refit_up(last, stop);
+  }
+}
+
 /// insert_below()'s second half: `shape` (its box `box`, its id `id`)
 /// goes into leaf n, whose count and box the descent from `top` has
 /// already raised (its box was `leaf_box`), which splits by the build rule
@@ -3428,11 +3468,7 @@ BVH_ALWAYS_INLINE int insert_at_leaf(Core<T, Tr, W> &core, int top, int n, const
       extend_summary(core, n, box);
     }
   } catch (...) {
-    // Undo the descent: the counts, the leaf's box, its ancestors' unions.
-    const int stop = nodes.info(top).parent;
-    for (int m = n; m != stop; m = nodes.info(m).parent) --nodes.info(m).count;
-    nodes.set_box(n, leaf_box);
-    if (n != top) core.refit_up(nodes.info(n).parent, stop);
+    undo_descent(core, n, nodes.info(top).parent, &leaf_box);
     throw;
   }
   return n;
@@ -4900,13 +4936,13 @@ void insert_pipelined(Core<T, Tr, W> &core, const std::vector<T> &candidates, co
                 "insert_pipelined() needs margin 0 and an inner root");
   constexpr int kPipe = 4;
   struct Cursor {
-    std::size_t item;      // in keep
-    Box box;               // the shape's
-    int n;                 // the node of its next step, or (at_leaf) the leaf it stepped at
-    int depth;             // n's
-    int prev, above;       // as in insert_below
+    std::size_t item;   // in keep
+    Box box;            // the shape's
+    int n;              // the node of its next step, or (at_leaf) the leaf it stepped at
+    int depth;          // n's
+    int prev, above;    // as in insert_below
     std::size_t prev_count;
-    Box leaf_box;          // (at_leaf) the leaf's box before
+    Box leaf_box;       // (at_leaf) the leaf's box before
     bool at_leaf;
   };
   NodeStore<W> &nodes = core.nodes;
@@ -4923,34 +4959,17 @@ void insert_pipelined(Core<T, Tr, W> &core, const std::vector<T> &candidates, co
     c.prev_count = 0;
     c.at_leaf = false;
   };
-  // Undoes what cursor c wrote: the counts of the nodes it stepped at,
-  // the leaf's box, and the boxes above refitted (the unions of children
-  // that do not hold its shape).
   const auto roll_back = [&](const Cursor &c) noexcept {
-    const int last = c.at_leaf ? c.n : nodes.info(c.n).parent; // (-1: no step yet)
-    for (int m = last; m >= 0; m = nodes.info(m).parent) --nodes.info(m).count;
-    if (c.at_leaf) {
-      nodes.set_box(c.n, c.leaf_box);
-      if (nodes.info(c.n).parent >= 0) core.refit_up(nodes.info(c.n).parent);
-    } else if (last >= 0) {
-      core.refit_up(last);
-    }
+    undo_descent(core, c.at_leaf ? c.n : nodes.info(c.n).parent, -1, c.at_leaf ? &c.leaf_box : nullptr);
   };
+  // One step, and a prefetch of what the cursor's next step reads.
   const auto step = [&](Cursor &c) BVH_LAMBDA_INLINE {
-    const std::size_t count = ++nodes.info(c.n).count;
-    const Node<W> &node = nodes.node(c.n);
-    if (node.is_leaf()) {
-      c.leaf_box = nodes.box(c.n);
-      nodes.extend_box(c.n, c.box);
+    if (descend_step(nodes, c.n, c.prev, c.above, c.prev_count, c.leaf_box, c.box, smallest)) {
       c.at_leaf = true;
-      if (node.leaf().has_slot()) core.leaves.prefetch_end(node);
+      const Node<W> &leaf = nodes.node(c.n);
+      if (leaf.leaf().has_slot()) core.leaves.prefetch_end(leaf);
       return;
     }
-    if (c.above < 0 && c.prev >= 0 && c.prev_count >= smallest && lopsided(count, c.prev_count)) c.above = c.prev;
-    nodes.extend_box(c.n, c.box);
-    c.prev = c.n;
-    c.prev_count = count;
-    c.n = choose_child(node, c.box);
     ++c.depth;
     prefetch_lines(&nodes.node(c.n), sizeof(Node<W>));
     prefetch_lines(&nodes.info(c.n), sizeof(Info));
@@ -5077,14 +5096,14 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
                      unsigned threads, Crew &crew, DisjointClock &clock, std::vector<std::size_t> &kept) {
   constexpr std::size_t kLanesMin = BVH_DISJOINT_LANES_MIN; // a smaller tree: serially
   NodeStore<W> &nodes = core.nodes;
+  if (threads == 1 && core.margin == 0 && core.root >= 0 && !nodes.node(core.root).is_leaf()) {
+    insert_pipelined(core, candidates, keep, 0, kept);
+    clock.lap(3);
+    return;
+  }
   int depth = 0; // the frontier's: about 16 subtrees a thread
   for (std::size_t lanes = 1; lanes < 16 * std::size_t(threads); lanes *= std::size_t(W)) ++depth;
   for (std::size_t next = 0; next < keep.size();) {
-    if (threads == 1 && core.margin == 0 && core.root >= 0 && !nodes.node(core.root).is_leaf()) {
-      insert_pipelined(core, candidates, keep, next, kept);
-      clock.lap(3);
-      return;
-    }
     if (threads == 1 || core.margin != 0 || core.root < 0 || nodes.node(core.root).is_leaf() || core.size < kLanesMin ||
         keep.size() - next < 64) {
       insert_serially(core, candidates, keep, next, kept);
