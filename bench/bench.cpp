@@ -49,6 +49,9 @@ inline double cpu_now() {
   return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
 }
 inline double cpu_last = 0;
+/// Only the methods that print the steps' figures (ours-par, ours-par1)
+/// turn the clock on; the others are timed without it.
+inline bool enabled = false;
 inline void add(int step, double seconds) {
   const double now = cpu_now();
   step_seconds[step] += seconds;
@@ -57,6 +60,7 @@ inline void add(int step, double seconds) {
 }
 } // namespace bench_profile
 #define BVH_DISJOINT_PROFILE bench_profile::add
+#define BVH_DISJOINT_PROFILE_ON bench_profile::enabled
 
 #include "../bvh.h"
 #include "../scene.h"
@@ -199,6 +203,10 @@ template <class T> Outcome discard_ours_par(const std::vector<T> &c, unsigned th
   for (double &s : bench_profile::step_seconds) s = 0;
   for (double &s : bench_profile::step_cpu) s = 0;
   Outcome o;
+  struct On {
+    On() { bench_profile::enabled = true; }
+    ~On() { bench_profile::enabled = false; }
+  } on;
   Timer timer;
   bench_profile::cpu_last = bench_profile::cpu_now();
   const double cpu_start = bench_profile::cpu_last;
@@ -637,6 +645,7 @@ struct Options {
   int runs = 0; // 0: default per workload
   std::string only, method;
   bool in_process = false;
+  bool fork = false; // --fork: each run in its own process even with --only
   std::string bvh = "./bvh.out";
   std::string data = "build/bench-data";
   std::string out; // default: bench, or build/bench-quick with --quick
@@ -1166,17 +1175,19 @@ void write_svg_plot(const Report &rep, const std::vector<long> &ns, const std::v
 // ---------------------------------------------------------------------------
 
 void usage() {
-  std::cout << "usage: build/bench [--quick] [--runs N] [--only WORKLOAD] [--method NAME] [--in-process] [--big N]\n"
+  std::cout << "usage: build/bench [--quick] [--runs N] [--only WORKLOAD] [--method NAME] [--in-process] [--fork] [--big N]\n"
                "                   [--bvh PATH] [--data DIR] [--out DIR] [--sorted-budget SECONDS]\n"
                "  --quick           reduced sizes (1M -> 100k, 100k -> 20k), 3 runs each (under a minute)\n"
                "  --runs N          runs per (workload, method); the median is reported\n"
                "                    (default 5, 3 for the 1M workloads, 1 with --only)\n"
                "  --only WORKLOAD   one workload: W1 W2 W3 tri quad S1000 ... S1000000\n"
-               "                    (implies --in-process; no files are written)\n"
+               "                    (implies --in-process unless --fork; no files are written)\n"
                "  --method NAME     one method (or several: NAME,NAME): ours ours-1t ours-d8 ours-w4 ours-w8 ours-w8k8 ours-w8k16 ours-w8k32 ours-w8k64 ours-w8k32-s1 ours-par ours-par1 brute boost-quad16 boost-rstar16 box2d grid\n"
                "  --big N           N candidates in W1, W2 and W3 instead of 1M (the 10M scaling point:\n"
                "                    --big 10000000 --only W2 --method ours, then boost-quad16, grid)\n"
                "  --in-process      no fork per run (for valgrind/perf); peak RSS is then cumulative\n"
+               "  --fork            with --only: each run in its own process, as make bench runs it\n"
+               "                    (a run's heap then starts as the parent's, whatever ran before)\n"
                "  --bvh PATH        the generator (default ./bvh.out)\n"
                "  --data DIR        cached scenes (default build/bench-data)\n"
                "  --out DIR         where results.txt and results.svg go (default bench; with --quick\n"
@@ -1202,6 +1213,7 @@ int main(int argc, char **argv) {
     else if (a == "--method") opt.method = value();
     else if (a == "--big") opt.big = std::atol(value().c_str());
     else if (a == "--in-process") opt.in_process = true;
+    else if (a == "--fork") opt.fork = true;
     else if (a == "--bvh") opt.bvh = value();
     else if (a == "--data") opt.data = value();
     else if (a == "--out") opt.out = value();
@@ -1215,7 +1227,7 @@ int main(int argc, char **argv) {
       return 2;
     }
   }
-  if (!opt.only.empty()) opt.in_process = true;
+  if (!opt.only.empty() && !opt.fork) opt.in_process = true;
   // A quick run must not overwrite the full run's results in bench/.
   if (opt.out.empty()) opt.out = opt.quick ? "build/bench-quick" : "bench";
   if (opt.quick) {

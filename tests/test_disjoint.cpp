@@ -28,11 +28,19 @@ inline std::atomic<std::size_t> &laps() {
   static std::atomic<std::size_t> n{0};
   return n;
 }
+inline std::atomic<std::size_t> &all_laps() {
+  static std::atomic<std::size_t> n{0};
+  return n;
+}
 inline void lap(int step, double) {
+  ++all_laps();
   if (step == 4) ++laps();
 }
+/// BVH_DISJOINT_PROFILE_ON: the clock is read only while this is true.
+inline bool on = true;
 } // namespace lanes_probe
 #define BVH_DISJOINT_PROFILE lanes_probe::lap
+#define BVH_DISJOINT_PROFILE_ON lanes_probe::on
 // Lanes from trees of 512 shapes (bvh.h's default: 4,096), so that the
 // scaled-down runs (valgrind's, the sanitizers') take them on small trees.
 #define BVH_DISJOINT_LANES_MIN 512
@@ -281,6 +289,34 @@ template <int W> void lanes_at_width(unsigned seed) {
     CHECK(lanes_probe::laps() > before);
   }
 }
+// A call made while BVH_DISJOINT_PROFILE_ON is false reports no lap (it
+// reads no clock) and keeps what the loop keeps; the next call with it
+// true reports laps again.
+TEST(disjoint_profile_off_reports_no_lap) {
+  const unsigned seed = base_seed() + 530;
+  note("BVH_SEED=" + std::to_string(seed));
+  Maker make(seed);
+  const std::vector<Disk> base = make.scene<Disk>(lanes_scaled(6000), 0.5);
+  const std::vector<Disk> c = lanes_candidates(make);
+  BVH<Disk, bvh::shape_traits<Disk>, 8> loop(32);
+  loop.construct(base);
+  for (const Disk &s : c)
+    if (!loop.collision(s)) loop.insert(s);
+  for (unsigned threads : {1u, 2u}) {
+    for (bool on : {false, true}) {
+      BVH<Disk, bvh::shape_traits<Disk>, 8> tree(32);
+      tree.construct(base);
+      lanes_probe::on = on;
+      const std::size_t before = lanes_probe::all_laps();
+      tree.insert_disjoint(c, threads);
+      lanes_probe::on = true;
+      CHECK((lanes_probe::all_laps() > before) == on);
+      CHECK(tree.validate());
+      CHECK(fingerprint(tree) == fingerprint(loop));
+    }
+  }
+}
+
 TEST(disjoint_lanes_are_the_loop_at_width_2) { lanes_at_width<2>(base_seed() + 540); }
 TEST(disjoint_lanes_are_the_loop_at_width_4) { lanes_at_width<4>(base_seed() + 560); }
 TEST(disjoint_lanes_are_the_loop_at_width_8) { lanes_at_width<8>(base_seed() + 580); }
