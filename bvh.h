@@ -1138,7 +1138,10 @@ private:
 /// reads them.
 struct Probe {
   /// The probe of `box` (once per query: out of line, see BVH_NOINLINE).
-  static BVH_NOINLINE Probe around(const Box &box) {
+  static BVH_NOINLINE Probe around(const Box &box) { return inline_around(box); }
+  /// around(), inlined: for a caller that keeps the probe in memory
+  /// anyway (collides_each's lanes), where the call costs more than it saves.
+  static BVH_ALWAYS_INLINE Probe inline_around(const Box &box) {
     float f[4];
     round_out(box, f);
     return Probe(f[0], f[1], f[2], f[3], 0.5f * (f[0] + f[2]), 0.5f * (f[1] + f[3]));
@@ -3885,7 +3888,7 @@ void collides_each(const Core<T, Tr, W> &core, const T *shapes, std::size_t coun
       s.shape = &shapes[j];
       s.hit = &hit[j];
       s.box = box;
-      s.probe = Probe::around(box);
+      s.probe = Probe::inline_around(box);
       enter(s, core.root);
       return true;
     }
@@ -4769,8 +4772,15 @@ public:
   void clear() { size_ = 0; }
   /// Adds box b (lo x, lo y, hi x, hi y) as box size().
   void push_back(const float b[4]) {
-    if (size_ % 4 == 0)
-      for (std::vector<float> *row : {&lo_x_, &lo_y_, &hi_x_, &hi_y_}) row->resize(size_ + 4);
+    // The rows keep their length between batches (clear() leaves it): a
+    // batch's pushes then write, without resizing four vectors every
+    // fourth box.
+    // (hi_y_ grows last: if a resize throws, the rows before it are only
+    // longer, and the next push grows them all again)
+    if (size_ + 4 > hi_y_.size()) {
+      const std::size_t length = 2 * hi_y_.size() + 64;
+      for (std::vector<float> *row : {&lo_x_, &lo_y_, &hi_x_, &hi_y_}) row->resize(std::max(length, row->size()));
+    }
     lo_x_[size_] = b[0];
     lo_y_[size_] = b[1];
     hi_x_[size_] = b[2];
@@ -4799,7 +4809,7 @@ public:
   }
 
 private:
-  std::vector<float> lo_x_, lo_y_, hi_x_, hi_y_; // (lengths: size_ rounded up to 4)
+  std::vector<float> lo_x_, lo_y_, hi_x_, hi_y_; // (lengths: at least size_ rounded up to 4)
   std::size_t size_ = 0;
 };
 
