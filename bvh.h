@@ -4612,6 +4612,13 @@ template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, st
 /// thread (the lanes); a smaller tree is not worth splitting. Tests define
 /// it lower before bvh.h, so that small trees (and their runs under
 /// valgrind and the sanitizers) take the lanes too.
+/// The fewest threads on which insert_disjoint's step 4 takes the lanes
+/// (0: by width, disjoint_lanes_threads()). With fewer, the driver inserts
+/// alone by the pipeline (insert_pipelined) while steps 1 and 2 still run
+/// on every thread.
+#ifndef BVH_DISJOINT_LANES_THREADS
+#define BVH_DISJOINT_LANES_THREADS 0
+#endif
 #ifndef BVH_DISJOINT_LANES_MIN
 #define BVH_DISJOINT_LANES_MIN 4096
 #endif
@@ -5096,6 +5103,15 @@ template <class T, class Tr, int W>
   std::rethrow_exception(error);
 }
 
+/// The fewest threads worth the lanes at width W. Two lanes beat the
+/// pipeline on the course's deep, narrow tree, where each insertion's
+/// descent is long; on a wide tree one pipelined thread inserts faster
+/// than two lanes, which each descend one insertion at a time and wait on
+/// the routing (docs/performance.txt, NODE WIDTH).
+template <int W> constexpr unsigned disjoint_lanes_threads() {
+  return BVH_DISJOINT_LANES_THREADS > 0 ? unsigned(BVH_DISJOINT_LANES_THREADS) : W == kCourseWidth ? 2u : 3u;
+}
+
 /// Step 4: keep[i] inserted, in order, for every i, with exactly the loop's
 /// tree (insert_new one by one), on the crew's threads. A candidate's
 /// descent first passes the top of the tree (Frontier), then stays in one
@@ -5117,7 +5133,8 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
                      unsigned threads, Crew &crew, DisjointClock &clock, std::vector<std::size_t> &kept) {
   constexpr std::size_t kLanesMin = BVH_DISJOINT_LANES_MIN; // a smaller tree: serially
   NodeStore<W> &nodes = core.nodes;
-  if (threads == 1 && core.margin == 0 && core.root >= 0 && !nodes.node(core.root).is_leaf()) {
+  const bool lanes_pay = threads >= disjoint_lanes_threads<W>();
+  if (!lanes_pay && core.margin == 0 && core.root >= 0 && !nodes.node(core.root).is_leaf()) {
     insert_pipelined(core, candidates, keep, 0, kept);
     clock.lap(3);
     return;
@@ -5125,7 +5142,7 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
   int depth = 0; // the frontier's: about 16 subtrees a thread
   for (std::size_t lanes = 1; lanes < 16 * std::size_t(threads); lanes *= std::size_t(W)) ++depth;
   for (std::size_t next = 0; next < keep.size();) {
-    if (threads == 1 || core.margin != 0 || core.root < 0 || nodes.node(core.root).is_leaf() || core.size < kLanesMin ||
+    if (!lanes_pay || core.margin != 0 || core.root < 0 || nodes.node(core.root).is_leaf() || core.size < kLanesMin ||
         keep.size() - next < 64) {
       insert_serially(core, candidates, keep, next, kept);
       clock.lap(3);
