@@ -4613,7 +4613,7 @@ template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, st
 /// it lower before bvh.h, so that small trees (and their runs under
 /// valgrind and the sanitizers) take the lanes too.
 /// The fewest threads on which insert_disjoint's step 4 takes the lanes
-/// (0: by width, disjoint_lanes_threads()). With fewer, the driver inserts
+/// (0: by the tree's shape, disjoint_lanes_threads()). With fewer, the driver inserts
 /// alone by the pipeline (insert_pipelined) while steps 1 and 2 still run
 /// on every thread.
 #ifndef BVH_DISJOINT_LANES_THREADS
@@ -5103,13 +5103,16 @@ template <class T, class Tr, int W>
   std::rethrow_exception(error);
 }
 
-/// The fewest threads worth the lanes at width W. Two lanes beat the
-/// pipeline on the course's deep, narrow tree, where each insertion's
-/// descent is long; on a wide tree one pipelined thread inserts faster
-/// than two lanes, which each descend one insertion at a time and wait on
-/// the routing (docs/performance.txt, NODE WIDTH).
-template <int W> constexpr unsigned disjoint_lanes_threads() {
-  return BVH_DISJOINT_LANES_THREADS > 0 ? unsigned(BVH_DISJOINT_LANES_THREADS) : W == kCourseWidth ? 2u : 3u;
+/// The fewest threads worth the lanes at width W with leaves of up to
+/// `split_threshold` shapes. Two lanes beat the pipeline on deep trees
+/// (narrow nodes or small leaves), where each insertion's descent is long;
+/// on a wide tree of large leaves, a few levels deep, one pipelined thread
+/// inserts faster than two lanes, which each descend one insertion at a
+/// time behind the driver's routing (docs/performance.txt, NODE WIDTH).
+template <int W> constexpr unsigned disjoint_lanes_threads(int split_threshold) {
+  return BVH_DISJOINT_LANES_THREADS > 0                     ? unsigned(BVH_DISJOINT_LANES_THREADS)
+         : W > kCourseWidth && split_threshold >= 16 ? 3u
+                                                     : 2u;
 }
 
 /// Step 4: keep[i] inserted, in order, for every i, with exactly the loop's
@@ -5133,7 +5136,7 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
                      unsigned threads, Crew &crew, DisjointClock &clock, std::vector<std::size_t> &kept) {
   constexpr std::size_t kLanesMin = BVH_DISJOINT_LANES_MIN; // a smaller tree: serially
   NodeStore<W> &nodes = core.nodes;
-  const bool lanes_pay = threads >= disjoint_lanes_threads<W>();
+  const bool lanes_pay = threads >= disjoint_lanes_threads<W>(core.split_threshold);
   if (!lanes_pay && core.margin == 0 && core.root >= 0 && !nodes.node(core.root).is_leaf()) {
     insert_pipelined(core, candidates, keep, 0, kept);
     clock.lap(3);

@@ -317,17 +317,16 @@ TEST(disjoint_profile_off_reports_no_lap) {
   }
 }
 
-// Step 4 takes the lanes from disjoint_lanes_threads<W>() threads: 2 at
-// the course's width, 3 at the others, where two threads insert by the
-// pipeline instead (steps 1 and 2 still on both). Each way, the loop's tree.
-template <int W> void lanes_from_threads(unsigned seed, unsigned threads, bool lanes) {
-  const std::string where = "BVH_SEED=" + std::to_string(seed) + " width " + std::to_string(W) + " threads " +
-                            std::to_string(threads);
+// Step 4 takes the lanes from disjoint_lanes_threads() threads: 2, or 3 on
+// a wide tree of large leaves, where two threads insert by the pipeline
+// instead (steps 1 and 2 still on both). Each way, the loop's tree.
+template <int W> void lanes_from_threads(unsigned seed, int split, unsigned threads, bool lanes) {
+  const std::string where = "BVH_SEED=" + std::to_string(seed) + " width " + std::to_string(W) + " split " +
+                            std::to_string(split) + " threads " + std::to_string(threads);
   note(where);
   Maker make(seed);
   const std::vector<Disk> base = make.scene<Disk>(lanes_scaled(6000), 0.5);
   const std::vector<Disk> c = lanes_candidates(make);
-  const int split = W == 3 ? 4 : 32;
   BVH<Disk, bvh::shape_traits<Disk>, W> loop(split), tree(split);
   loop.construct(base);
   tree.construct(base);
@@ -342,11 +341,13 @@ template <int W> void lanes_from_threads(unsigned seed, unsigned threads, bool l
 }
 TEST(disjoint_lanes_from_their_thread_count) {
   const unsigned seed = base_seed() + 535;
-  static_assert(bvh::detail::disjoint_lanes_threads<3>() == 2 && bvh::detail::disjoint_lanes_threads<8>() == 3,
+  static_assert(bvh::detail::disjoint_lanes_threads<3>(32) == 2 && bvh::detail::disjoint_lanes_threads<8>(8) == 2 &&
+                    bvh::detail::disjoint_lanes_threads<8>(16) == 3,
                 "the lanes' thread counts this case expects");
-  lanes_from_threads<3>(seed, 2, true);
-  lanes_from_threads<8>(seed + 1, 2, false);
-  lanes_from_threads<8>(seed + 2, 3, true);
+  lanes_from_threads<3>(seed, 4, 2, true);
+  lanes_from_threads<8>(seed + 1, 4, 2, true);
+  lanes_from_threads<8>(seed + 2, 32, 2, false);
+  lanes_from_threads<8>(seed + 3, 32, 3, true);
 }
 
 TEST(disjoint_lanes_are_the_loop_at_width_2) { lanes_at_width<2>(base_seed() + 540); }
