@@ -284,7 +284,7 @@ endef
 $(eval $(call bench_moving_wide,bench_moving_w8,16))
 $(eval $(call bench_moving_wide,bench_moving_w8k32,32))
 
-WIDTH_METHODS := ours,ours-w4,ours-w8,ours-w8k8,ours-w8k16,ours-w8k32,ours-w8k32-s1,boost-quad16,boost-rstar16,grid
+WIDTH_METHODS := ours,ours-w4,ours-w8,ours-w8k8,ours-w8k16,ours-w8k32,ours-w8k32-s1,ours-w8k32-all,boost-quad16,boost-rstar16,grid
 bench-widths: bvh.out $(BUILD)/bench $(BUILD)/bench_moving $(BUILD)/bench_moving_w8 $(BUILD)/bench_moving_w8k32
 	@out=bench/results_widths.txt; { echo "make bench-widths at $$(git rev-parse --short HEAD 2>/dev/null) (bvh.h sha1 $$(sha1sum bvh.h | cut -c1-12)), $$(date -u +%Y-%m-%dT%H:%MZ); uptime: $$(uptime)"; \
 	for w in W1 W2 W3; do echo; echo "### $(BUILD)/bench --only $$w --method $(WIDTH_METHODS) --runs $(or $(RUNS),5)"; \

@@ -186,11 +186,11 @@ template <class T, int W = 3> Outcome discard_ours(const std::vector<T> &c, int 
 
 /// The same loop by one call, insert_disjoint(c, 1): on one thread, the
 /// loop's result, with the searches of a batch interleaved.
-template <class T, int W> Outcome discard_ours_sampled(const std::vector<T> &c, int split) {
+template <class T, int W> Outcome discard_ours_sampled(const std::vector<T> &c, int split, unsigned threads = 1) {
   Outcome o;
   Timer timer;
   BVH<T, bvh::shape_traits<T>, W> tree(split);
-  const std::vector<std::size_t> kept = tree.insert_disjoint(c, 1);
+  const std::vector<std::size_t> kept = tree.insert_disjoint(c, threads);
   o.seconds = timer.stop();
   o.ids.assign(kept.begin(), kept.end());
   return o;
@@ -479,6 +479,7 @@ std::vector<Method> all_methods() {
       {"ours-w8k32", "ours width 8, BVH(32)", true, ""},
       {"ours-w8k64", "ours width 8, BVH(64)", true, ""},
       {"ours-w8k32-s1", "ours w8 k32 disjoint(c,1)", true, ""}, // discard workloads only
+      {"ours-w8k32-all", "ours w8 k32 disjoint(c,0)", true, ""}, // discard workloads only
       {"ours-par", "ours insert_disjoint, all", true, ""},      // discard workloads only
       {"ours-par1", "ours insert_disjoint(.., 1)", true, ""},   // discard workloads only
       {"brute", "brute force", true, ""},
@@ -502,6 +503,7 @@ template <class T> bool run_discard(const std::string &m, const std::vector<T> &
   else if (m == "ours-w8k32") o = discard_ours<T, 8>(c, 0, 32);
   else if (m == "ours-w8k64") o = discard_ours<T, 8>(c, 0, 64);
   else if (m == "ours-w8k32-s1") o = discard_ours_sampled<T, 8>(c, 32);
+  else if (m == "ours-w8k32-all") o = discard_ours_sampled<T, 8>(c, 32, 0);
   else if (m == "ours-par") o = discard_ours_par(c, 0);
   else if (m == "ours-par1") o = discard_ours_par(c, 1);
   else if (m == "brute") o = discard_brute(c);
@@ -755,12 +757,14 @@ std::string width_goals(const Report &r) {
     if (!bulk && w.compare(0, 2, "W1") != 0 && w.compare(0, 2, "W2") != 0) continue;
     // ours: the loop of collision() and insert(); sampled: the same loop
     // in one call, insert_disjoint(c, 1), also on one thread.
-    const Row *ours = nullptr, *sampled = nullptr, *peer = nullptr, *grid = nullptr;
+    const Row *ours = nullptr, *sampled = nullptr, *all_cores = nullptr, *peer = nullptr, *grid = nullptr;
     for (const Row &row : r.rows) {
       if (row.workload != w || !row.note.empty() || row.times.empty()) continue;
       const std::string &m = row.method;
       const bool is_sampled = m.size() > 3 && m.compare(m.size() - 3, 3, "-s1") == 0;
-      const bool is_ours = m.compare(0, 4, "ours") == 0 && m.compare(0, 8, "ours-par") != 0 && !is_sampled;
+      const bool is_all = m.size() > 4 && m.compare(m.size() - 4, 4, "-all") == 0;
+      const bool is_ours = m.compare(0, 4, "ours") == 0 && m.compare(0, 8, "ours-par") != 0 && !is_sampled && !is_all;
+      if (is_all) all_cores = &row;
       const bool is_peer = m.compare(0, 5, "boost") == 0 || m == "box2d";
       if (is_ours && (!ours || row.med() < ours->med())) ours = &row;
       if (is_sampled && (!sampled || row.med() < sampled->med())) sampled = &row;
@@ -783,6 +787,10 @@ std::string width_goals(const Report &r) {
     if (sampled && grid)
       t << "  the loop in one call, " << sampled->label << ": / grid " << fmt("%.2f", sampled->med() / grid->med())
         << ", / the loop above " << fmt("%.2f", sampled->med() / ours->med()) << "\n";
+    if (all_cores && sampled)
+      t << "  the same call on every core, " << all_cores->label << ": / one thread "
+        << fmt("%.2f", all_cores->med() / sampled->med()) << (grid ? ", / grid " + fmt("%.2f", all_cores->med() / grid->med()) : "")
+        << "\n";
   }
   return t.str();
 }
@@ -827,7 +835,8 @@ void run_workload(const Options &opt, const Workload &w, const std::vector<T> &c
       row.note = w.bulk ? "skipped: 1M x 100k scan" : "skipped: over " + count_label(brute_limit(opt)) + " candidates";
     } else if (m.name == "ours-1t" && !w.bulk) {
       continue; // only construct() uses threads
-    } else if ((m.name == "ours-par" || m.name == "ours-par1" || m.name == "ours-w8k32-s1") && w.bulk) {
+    } else if ((m.name == "ours-par" || m.name == "ours-par1" || m.name == "ours-w8k32-s1" || m.name == "ours-w8k32-all") &&
+               w.bulk) {
       continue; // insert_disjoint is a discard
     } else if (m.name == "grid" && (w.bulk || !std::is_same<T, Disk>::value)) {
       continue; // the grid is a reference for disk discards only
@@ -1182,7 +1191,7 @@ void usage() {
                "                    (default 5, 3 for the 1M workloads, 1 with --only)\n"
                "  --only WORKLOAD   one workload: W1 W2 W3 tri quad S1000 ... S1000000\n"
                "                    (implies --in-process unless --fork; no files are written)\n"
-               "  --method NAME     one method (or several: NAME,NAME): ours ours-1t ours-d8 ours-w4 ours-w8 ours-w8k8 ours-w8k16 ours-w8k32 ours-w8k64 ours-w8k32-s1 ours-par ours-par1 brute boost-quad16 boost-rstar16 box2d grid\n"
+               "  --method NAME     one method (or several: NAME,NAME): ours ours-1t ours-d8 ours-w4 ours-w8 ours-w8k8 ours-w8k16 ours-w8k32 ours-w8k64 ours-w8k32-s1 ours-w8k32-all ours-par ours-par1 brute boost-quad16 boost-rstar16 box2d grid\n"
                "  --big N           N candidates in W1, W2 and W3 instead of 1M (the 10M scaling point:\n"
                "                    --big 10000000 --only W2 --method ours, then boost-quad16, grid)\n"
                "  --in-process      no fork per run (for valgrind/perf); peak RSS is then cumulative\n"
