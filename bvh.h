@@ -4608,17 +4608,17 @@ template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, st
 // batches (Crew), so a batch never waits for a thread to start or for one
 // the system has not yet woken.
 
+/// The fewest threads on which insert_disjoint's step 4 takes the lanes
+/// (0: by the tree's shape, disjoint_lanes_threads(); never fewer than 2).
+/// With fewer, the driver inserts alone by the pipeline (insert_pipelined)
+/// while steps 1 and 2 still run on every thread.
+#ifndef BVH_DISJOINT_LANES_THREADS
+#define BVH_DISJOINT_LANES_THREADS 0
+#endif
 /// The size of tree from which insert_disjoint's step 4 inserts on every
 /// thread (the lanes); a smaller tree is not worth splitting. Tests define
 /// it lower before bvh.h, so that small trees (and their runs under
 /// valgrind and the sanitizers) take the lanes too.
-/// The fewest threads on which insert_disjoint's step 4 takes the lanes
-/// (0: by the tree's shape, disjoint_lanes_threads()). With fewer, the driver inserts
-/// alone by the pipeline (insert_pipelined) while steps 1 and 2 still run
-/// on every thread.
-#ifndef BVH_DISJOINT_LANES_THREADS
-#define BVH_DISJOINT_LANES_THREADS 0
-#endif
 #ifndef BVH_DISJOINT_LANES_MIN
 #define BVH_DISJOINT_LANES_MIN 4096
 #endif
@@ -4781,9 +4781,8 @@ public:
   void push_back(const float b[4]) {
     // The rows keep their length between batches (clear() leaves it): a
     // batch's pushes then write, without resizing four vectors every
-    // fourth box.
-    // (hi_y_ grows last: if a resize throws, the rows before it are only
-    // longer, and the next push grows them all again)
+    // fourth box. hi_y_ grows last: if a resize throws, the rows before it
+    // are only longer, and the next push grows them all again.
     if (size_ + 4 > hi_y_.size()) {
       const std::size_t length = 2 * hi_y_.size() + 64;
       for (std::vector<float> *row : {&lo_x_, &lo_y_, &hi_x_, &hi_y_}) row->resize(std::max(length, row->size()));
@@ -5110,9 +5109,8 @@ template <class T, class Tr, int W>
 /// inserts faster than two lanes, which each descend one insertion at a
 /// time behind the driver's routing (docs/performance.txt, NODE WIDTH).
 template <int W> constexpr unsigned disjoint_lanes_threads(int split_threshold) {
-  return BVH_DISJOINT_LANES_THREADS > 0                     ? unsigned(BVH_DISJOINT_LANES_THREADS)
-         : W > kCourseWidth && split_threshold >= 16 ? 3u
-                                                     : 2u;
+  if (BVH_DISJOINT_LANES_THREADS > 0) return std::max(2u, unsigned(BVH_DISJOINT_LANES_THREADS));
+  return W > kCourseWidth && split_threshold >= 16 ? 3u : 2u;
 }
 
 /// Step 4: keep[i] inserted, in order, for every i, with exactly the loop's
