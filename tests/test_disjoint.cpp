@@ -289,6 +289,18 @@ template <int W> void lanes_at_width(unsigned seed) {
     CHECK(lanes_probe::laps() > before);
   }
 }
+/// The loop's tree of width W: `base` constructed, then each candidate of
+/// `c` that collides with nothing inserted.
+template <int W>
+BVH<Disk, bvh::shape_traits<Disk>, W> constructed_then_loop(const std::vector<Disk> &base, const std::vector<Disk> &c,
+                                                            int split) {
+  BVH<Disk, bvh::shape_traits<Disk>, W> loop(split);
+  loop.construct(base);
+  for (const Disk &s : c)
+    if (!loop.collision(s)) loop.insert(s);
+  return loop;
+}
+
 // A call made while BVH_DISJOINT_PROFILE_ON is false reports no lap (it
 // reads no clock) and keeps what the loop keeps; the next call with it
 // true reports laps again.
@@ -298,10 +310,7 @@ TEST(disjoint_profile_off_reports_no_lap) {
   Maker make(seed);
   const std::vector<Disk> base = make.scene<Disk>(lanes_scaled(6000), 0.5);
   const std::vector<Disk> c = lanes_candidates(make);
-  BVH<Disk, bvh::shape_traits<Disk>, 8> loop(32);
-  loop.construct(base);
-  for (const Disk &s : c)
-    if (!loop.collision(s)) loop.insert(s);
+  const BVH<Disk, bvh::shape_traits<Disk>, 8> loop = constructed_then_loop<8>(base, c, 32);
   for (unsigned threads : {1u, 2u}) {
     for (bool on : {false, true}) {
       BVH<Disk, bvh::shape_traits<Disk>, 8> tree(32);
@@ -327,11 +336,9 @@ template <int W> void lanes_from_threads(unsigned seed, int split, unsigned thre
   Maker make(seed);
   const std::vector<Disk> base = make.scene<Disk>(lanes_scaled(6000), 0.5);
   const std::vector<Disk> c = lanes_candidates(make);
-  BVH<Disk, bvh::shape_traits<Disk>, W> loop(split), tree(split);
-  loop.construct(base);
+  const BVH<Disk, bvh::shape_traits<Disk>, W> loop = constructed_then_loop<W>(base, c, split);
+  BVH<Disk, bvh::shape_traits<Disk>, W> tree(split);
   tree.construct(base);
-  for (const Disk &s : c)
-    if (!loop.collision(s)) loop.insert(s);
   const std::size_t before = lanes_probe::laps();
   tree.insert_disjoint(c, threads);
   if ((lanes_probe::laps() > before) != lanes) note(where + ": lanes " + (lanes ? "expected, none ran" : "ran"));
