@@ -29,7 +29,7 @@ JOBS=${JOBS:-$(nproc 2>/dev/null || echo 2)}
 MAKE=${MAKE:-make}
 export CXX COURSE_DATA BUILD JOBS
 # Arguments: none (every layer: make test), --quick (make check: bvh.out and
-# the unit tests at -O1, then the unit and golden layers), or layer names
+# the unit tests at -Og, then the unit and golden layers), or layer names
 # (the full build, then only those layers: tests/run.sh valgrind golden).
 ALL_LAYERS="fuzz valgrind sanitizers cmake course_framework golden python_model unit portable cli_errors cli_output cli_threads demo examples asserts tsan browser"
 QUICK=no
@@ -204,7 +204,7 @@ unit_tests() {
   # (collision()'s scalar fallback, BVH_NO_SIMD: the portable layer's build.)
 }
 
-# make check's unit tests: the same suites, built at -O1 into $BUILD/check
+# make check's unit tests: the same suites, built at -Og into $BUILD/check
 # (the Makefile's CHECK_CXXFLAGS: half the compile time of -O2) and already
 # run by the build, each at CHECK_SCALE of its random rounds, as soon as it
 # was built: here their output ($BUILD/check/test_*.out) is read.
@@ -487,7 +487,7 @@ valgrind_layer() {
   BVH_TEST_SCALE=0.03 run_suite valgrind_test_bvh "${VG[@]}" "$BUILD/test_units" bvh
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_threads "${VG[@]}" "$BUILD/test_units" threads
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_units" intersect
-  BVH_TEST_SCALE=0.2 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_units" dynamic
+  BVH_TEST_SCALE=0.1 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_units" dynamic
   BVH_TEST_SCALE=0.15 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_units" moving
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lazy_handles"
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_units" parse

@@ -651,8 +651,12 @@ template <class T, int W = 3> void sah_build_against_brute_force(unsigned seed) 
     course_total += sah_cost(b.str());
   }
   // What the rule is for: over many scenes, a lower SAH cost than the course's.
-  note("SAH total " + std::to_string(sah_total) + " against the course rule's " + std::to_string(course_total));
-  CHECK(sah_total <= course_total);
+  // (A greedy rule, so on one scene it may lose: the sum is compared only
+  // over five random scenes or more; valgrind's scaled-down run has one.)
+  const int random_scenes = std::max(0, scaled(40) - 3);
+  note("SAH total " + std::to_string(sah_total) + " against the course rule's " + std::to_string(course_total) +
+       " over " + std::to_string(random_scenes) + " random scenes");
+  if (random_scenes >= 5) CHECK(sah_total <= course_total);
 }
 
 TEST(sah_build_valid_and_correct_disks) { sah_build_against_brute_force<Disk>(base_seed() + 1200); }
