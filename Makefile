@@ -87,8 +87,8 @@ $(BUILD)/bvh_san.out: main.cpp $(HEADERS) | $(BUILD)
 	$(SAN_CXX) $(SANITIZE) -DBVH_CLI_COURSE_WIDTH_ONLY main.cpp -o $@
 
 # test_asserts and the examples at -O0: they run in a second or two (each
-# assert case in milliseconds) either way, and -O0 compiles them in about
-# two thirds of -Og's time.
+# assert case in milliseconds) either way, and -O0 compiles them at least
+# as fast as -Og.
 EXAMPLE_CXXFLAGS ?= -std=c++17 -O0 -Wall -Wextra -pedantic
 $(BUILD)/test_asserts: tests/test_asserts.cpp $(HEADERS) | $(BUILD)
 	$(CXX) $(EXAMPLE_CXXFLAGS) -I. $< -o $@
@@ -136,8 +136,8 @@ test: | $(BUILD)
 	+@MAKE="$(MAKE)" JOBS="$(JOBS)" CXX="$(CXX)" COURSE_DATA="$(COURSE_DATA)" BUILD="$(BUILD)" bash tests/run.sh
 
 # make check: the quick layer (under a minute from scratch on 2 cores):
-# bvh.out, the unit tests built at -Og into $(BUILD)/check (a third of the compile
-# time of -O2) and run at CHECK_SCALE of their random rounds, and the golden
+# bvh.out, the unit tests built at -Og into $(BUILD)/check (two fifths of the
+# compile time of -O2) and run at CHECK_SCALE of their random rounds, and the golden
 # stdout on the course's scenes and ours. Each unit test runs as soon as it
 # is built, beside the other compiles (its output: $(BUILD)/check/test_*.out,
 # which tests/run.sh --quick removes first and then reads).

@@ -205,7 +205,7 @@ unit_tests() {
 }
 
 # make check's unit tests: the same suites, built at -Og into $BUILD/check
-# (the Makefile's CHECK_CXXFLAGS: half the compile time of -O2) and already
+# (the Makefile's CHECK_CXXFLAGS: two fifths of the compile time of -O2) and already
 # run by the build, each at CHECK_SCALE of its random rounds, as soon as it
 # was built: here their output ($BUILD/check/test_*.out) is read.
 unit_tests_quick() {
