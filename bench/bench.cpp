@@ -171,16 +171,55 @@ struct Outcome {
 
 // --- ours ---
 
+/// --phases: discard_ours() also reads the clock around each collision()
+/// and insert() call and prints, on stderr, the loop's time split between
+/// them (less the clock's own cost, measured first). The reads add to the
+/// loop's own time, so its reported seconds then overstate it a little.
+bool phases = false;
+
+/// The cost of one Clock::now(), in seconds: the mean over many reads.
+double clock_cost() {
+  constexpr int kReads = 1000000;
+  const Clock::time_point t0 = Clock::now();
+  Clock::time_point t = t0;
+  for (int i = 0; i < kReads; ++i) t = Clock::now();
+  return std::chrono::duration<double>(t - t0).count() / kReads;
+}
+
 template <class T, int W = 3> Outcome discard_ours(const std::vector<T> &c, int depth_limit, int split = 4) {
   Outcome o;
+  const double cost = phases ? clock_cost() : 0;
   Timer timer;
   BVH<T, bvh::shape_traits<T>, W> tree(split, depth_limit);
-  for (std::uint32_t i = 0; i < c.size(); ++i)
-    if (!tree.collision(c[i])) {
+  if (!phases) {
+    for (std::uint32_t i = 0; i < c.size(); ++i)
+      if (!tree.collision(c[i])) {
+        tree.insert(c[i]);
+        o.ids.push_back(i);
+      }
+    o.seconds = timer.stop();
+    return o;
+  }
+  double searching = 0, inserting = 0;
+  Clock::time_point t = Clock::now();
+  for (std::uint32_t i = 0; i < c.size(); ++i) {
+    const bool hit = tree.collision(c[i]);
+    const Clock::time_point u = Clock::now();
+    searching += std::chrono::duration<double>(u - t).count() - cost;
+    t = u;
+    if (!hit) {
       tree.insert(c[i]);
       o.ids.push_back(i);
+      const Clock::time_point v = Clock::now();
+      inserting += std::chrono::duration<double>(v - t).count() - cost;
+      t = v;
     }
+  }
   o.seconds = timer.stop();
+  std::cerr << "bench: phases of the loop (width " << W << ", split " << split << "): collision() " << fmt("%.4f", searching)
+            << " s for " << c.size() << " calls, insert() " << fmt("%.4f", inserting) << " s for " << o.ids.size()
+            << " (the clock's " << fmt("%.1f", cost * 1e9) << " ns a read taken off), loop " << fmt("%.4f", o.seconds)
+            << " s with the reads\n";
   return o;
 }
 
@@ -1201,7 +1240,9 @@ void usage() {
                "  --data DIR        cached scenes (default build/bench-data)\n"
                "  --out DIR         where results.txt and results.svg go (default bench; with --quick\n"
                "                    build/bench-quick, so a quick run never replaces the full results)\n"
-               "  --sorted-budget S time cap of the sorted-by-x insertion in the SAH section (default 60)\n";
+               "  --sorted-budget S time cap of the sorted-by-x insertion in the SAH section (default 60)\n"
+               "  --phases          the loops of collision() and insert() (methods ours*, not -s1, -all, -par)\n"
+               "                    also print the time in each of the two calls, on stderr\n";
 }
 
 int main(int argc, char **argv) {
@@ -1227,6 +1268,7 @@ int main(int argc, char **argv) {
     else if (a == "--data") opt.data = value();
     else if (a == "--out") opt.out = value();
     else if (a == "--sorted-budget") opt.sorted_budget = std::atof(value().c_str());
+    else if (a == "--phases") phases = true;
     else if (a == "--help" || a == "-h") {
       usage();
       return 0;
