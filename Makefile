@@ -36,10 +36,11 @@ SAN_TESTS := $(BUILD)/test_units_san $(SOLO:%=$(BUILD)/test_%_san) $(BUILD)/bvh_
 # -std=c++20 (g++: the iterator's C++20 concept, the containers), and with
 # -DBVH_NO_SIMD, collision()'s scalar fallback instead of SSE2: one build
 # for both, the two questions being independent (the language mode does not
-# touch the SIMD code; the default build tests SSE2 under C++17). -O0: these
-# runs check the language and the fallback, not speed, and -O0 compiles
-# several times faster.
-PORTABLE_FLAGS ?= -O0 -DBVH_NO_SIMD -Wall -Wextra -pedantic
+# touch the SIMD code; the default build tests SSE2 under C++17), and with
+# -DBVH_NO_HUGE_PAGES, std::allocator for a build's items (the default build
+# tests the huge-page arrays). -O0: these runs check the language and the
+# fallbacks, not speed, and -O0 compiles several times faster.
+PORTABLE_FLAGS ?= -O0 -DBVH_NO_SIMD -DBVH_NO_HUGE_PAGES -Wall -Wextra -pedantic
 # (tests/units.cpp with -DUNITS_PORTABLE: those two suites, one program.)
 CXX20_TESTS := $(BUILD)/test_units_cxx20
 # BVH_ASSERT's misuse checks: on (the default build), off (-DNDEBUG), and a

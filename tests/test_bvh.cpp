@@ -8,10 +8,12 @@
 // its seed and case number with any failure.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <iomanip>
 #include <limits>
+#include <new>
 #include <random>
 #include <sstream>
 #include <string>
@@ -743,6 +745,61 @@ TEST(select_nth_gives_nth_elements_result) {
       }
     }
   CHECK(cases > 50);
+  CHECK_EQ(wrong, 0);
+}
+
+// BuildAllocator (the build's items): arrays of 8 MB or more come from
+// aligned_alloc, aligned to a huge page, on Linux; smaller ones, and every
+// array under BVH_NO_HUGE_PAGES or elsewhere, from std::allocator. A vector
+// that grows across the boundary frees each array the way it came.
+TEST(build_allocator_serves_small_and_huge_arrays) {
+  using Item = bvh::detail::Item<Disk, bvh::shape_traits<Disk>>;
+  using Alloc = bvh::detail::BuildAllocator<Item>;
+  const std::size_t huge_page = std::size_t(1) << 21;
+  const std::size_t boundary = 4 * huge_page / sizeof(Item) + (4 * huge_page % sizeof(Item) != 0);
+  Alloc alloc;
+  for (const std::size_t n : {std::size_t(1), boundary - 1, boundary, boundary + 12345}) {
+    Item *p = alloc.allocate(n);
+    CHECK(p != nullptr);
+    CHECK_EQ(reinterpret_cast<std::uintptr_t>(p) % alignof(Item), std::uintptr_t(0));
+#if defined(__linux__) && !defined(BVH_NO_HUGE_PAGES)
+    if (n >= boundary) CHECK_EQ(reinterpret_cast<std::uintptr_t>(p) % huge_page, std::uintptr_t(0));
+#endif
+    std::memset(static_cast<void *>(p), 0x5a, n * sizeof(Item)); // every byte is ours (ASan, valgrind)
+    alloc.deallocate(p, n);
+  }
+  bvh::detail::Items<Disk, bvh::shape_traits<Disk>> items;
+  const bvh::shape_traits<Disk> traits{};
+  for (std::size_t i = 0; i < boundary + 100; ++i)
+    items.push_back(bvh::detail::make_item(traits, Disk(Point(double(i), 0), 1, Color()), std::uint32_t(i)));
+  bool same = true;
+  for (std::size_t i = 0; i < items.size(); ++i) same = same && items[i].index == i && items[i].shape.getCenter().x == double(i);
+  CHECK(same);
+  bool threw = false;
+  try {
+    (void)alloc.allocate(std::size_t(-1) / sizeof(Item));
+  } catch (const std::bad_alloc &) {
+    threw = true;
+  }
+  CHECK(threw);
+}
+
+// A build whose items take 8 MB or more (the huge-page arrays): the course's
+// tree against the literal rule, and collision() against a scan.
+TEST(large_build_equals_the_literal_course_rule) {
+  if (scale() < 1) return; // the literal rule is slow at this size
+  const std::size_t n = (std::size_t(8) << 20) / sizeof(bvh::detail::Item<Disk, bvh::shape_traits<Disk>>) + 1000;
+  Maker make(base_seed() + 13, 0.0);
+  const std::vector<Disk> disks = make.scene<Disk>(int(n), 3);
+  BVH<Disk> tree(4, 0);
+  tree.construct(disks);
+  std::string why;
+  CHECK(tree.validate(&why));
+  if (!why.empty()) note(why);
+  CHECK(report(tree) == ref_report(disks, 4, 0));
+  const std::vector<Disk> probes = make.scene<Disk>(40, 3);
+  int wrong = 0;
+  for (const Disk &p : probes) wrong += tree.collision(p) != brute_collision(disks, p);
   CHECK_EQ(wrong, 0);
 }
 
