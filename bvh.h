@@ -82,8 +82,13 @@
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
 #include <emmintrin.h>
 #endif
-#if defined(__linux__) && !defined(BVH_NO_HUGE_PAGES)
+// A build's large scratch arrays in transparent huge pages (BuildAllocator):
+// Linux only (not Android, whose aligned_alloc depends on the API level).
+#if defined(__linux__) && !defined(__ANDROID__) && !defined(BVH_NO_HUGE_PAGES)
+#define BVH_HUGE_PAGES 1
 #include <sys/mman.h>
+#else
+#define BVH_HUGE_PAGES 0
 #endif
 
 // The only project header: with the course's shapes.h (the homework
@@ -2339,10 +2344,11 @@ template <class T, class Tr> Item<T, Tr> make_item(const Tr &traits, const T &sh
 /// The allocator of a build's items (BuildScratch). A large build writes
 /// tens of megabytes of items that it frees when done, and on a host where
 /// a page fault is dear, faulting them in 4 kB at a time costs as much as
-/// the selections that use them. So on Linux an array of 8 MB or more is
-/// aligned to 2 MB and asked for transparent huge pages (madvise: a hint,
-/// which a kernel with them turned off ignores). BVH_NO_HUGE_PAGES turns
-/// this off; elsewhere it is std::allocator.
+/// the selections that use them. So where BVH_HUGE_PAGES (Linux, not
+/// Android) an array of 8 MB or more is aligned to 2 MB and asked for
+/// transparent huge pages (madvise: a hint, which a kernel with them turned
+/// off ignores). BVH_NO_HUGE_PAGES turns this off; elsewhere it is
+/// std::allocator.
 template <class X> struct BuildAllocator {
   using value_type = X;
   BuildAllocator() = default;
@@ -2350,7 +2356,7 @@ template <class X> struct BuildAllocator {
   static constexpr std::size_t kHuge = std::size_t(1) << 21; // a huge page
   static std::size_t rounded(std::size_t n) { return (n * sizeof(X) + kHuge - 1) & ~(kHuge - 1); }
   static bool huge(std::size_t n) {
-#if defined(__linux__) && !defined(BVH_NO_HUGE_PAGES)
+#if BVH_HUGE_PAGES
     return n * sizeof(X) >= 4 * kHuge;
 #else
     (void)n;
@@ -2360,7 +2366,7 @@ template <class X> struct BuildAllocator {
   X *allocate(std::size_t n) {
     if (n > std::size_t(-1) / sizeof(X) / 2) throw std::bad_alloc();
     if (!huge(n)) return std::allocator<X>().allocate(n);
-#if defined(__linux__) && !defined(BVH_NO_HUGE_PAGES)
+#if BVH_HUGE_PAGES
     void *p = std::aligned_alloc(kHuge, rounded(n));
     if (!p) throw std::bad_alloc();
 #if defined(MADV_HUGEPAGE)

@@ -757,12 +757,14 @@ TEST(build_allocator_serves_small_and_huge_arrays) {
   using Alloc = bvh::detail::BuildAllocator<Item>;
   const std::size_t huge_page = std::size_t(1) << 21;
   const std::size_t boundary = 4 * huge_page / sizeof(Item) + (4 * huge_page % sizeof(Item) != 0);
+  CHECK_EQ(Alloc::huge(boundary), BVH_HUGE_PAGES == 1); // (off under BVH_NO_HUGE_PAGES: the portable build)
+  CHECK(!Alloc::huge(boundary - 1));
   Alloc alloc;
   for (const std::size_t n : {std::size_t(1), boundary - 1, boundary, boundary + 12345}) {
     Item *p = alloc.allocate(n);
     CHECK(p != nullptr);
     CHECK_EQ(reinterpret_cast<std::uintptr_t>(p) % alignof(Item), std::uintptr_t(0));
-#if defined(__linux__) && !defined(BVH_NO_HUGE_PAGES)
+#if BVH_HUGE_PAGES
     if (n >= boundary) CHECK_EQ(reinterpret_cast<std::uintptr_t>(p) % huge_page, std::uintptr_t(0));
 #endif
     std::memset(static_cast<void *>(p), 0x5a, n * sizeof(Item)); // every byte is ours (ASan, valgrind)
