@@ -2354,28 +2354,23 @@ template <class X> struct BuildAllocator {
   BuildAllocator() = default;
   template <class Y> BuildAllocator(const BuildAllocator<Y> &) noexcept {}
   static constexpr std::size_t kHuge = std::size_t(1) << 21; // a huge page
-  static std::size_t rounded(std::size_t n) { return (n * sizeof(X) + kHuge - 1) & ~(kHuge - 1); }
-  static bool huge(std::size_t n) {
-#if BVH_HUGE_PAGES
-    return n * sizeof(X) >= 4 * kHuge;
-#else
-    (void)n;
-    return false;
-#endif
-  }
+  /// Whether an array of n takes the huge pages: 8 MB or more (counted in
+  /// elements, so that no product overflows).
+  static bool huge(std::size_t n) { return BVH_HUGE_PAGES && n >= (4 * kHuge + sizeof(X) - 1) / sizeof(X); }
   X *allocate(std::size_t n) {
-    if (n > std::size_t(-1) / sizeof(X) / 2) throw std::bad_alloc();
-    if (!huge(n)) return std::allocator<X>().allocate(n);
+    if (n > (std::size_t(-1) - kHuge) / sizeof(X)) throw std::bad_alloc(); // (before any product)
 #if BVH_HUGE_PAGES
-    void *p = std::aligned_alloc(kHuge, rounded(n));
-    if (!p) throw std::bad_alloc();
+    if (huge(n)) {
+      const std::size_t bytes = (n * sizeof(X) + kHuge - 1) & ~(kHuge - 1); // (aligned_alloc: a multiple)
+      void *p = std::aligned_alloc(kHuge, bytes);
+      if (!p) throw std::bad_alloc();
 #if defined(MADV_HUGEPAGE)
-    ::madvise(p, rounded(n), MADV_HUGEPAGE); // (a hint: if it fails, nothing changes)
+      ::madvise(p, bytes, MADV_HUGEPAGE); // (a hint: if it fails, nothing changes)
 #endif
-    return static_cast<X *>(p);
-#else
-    return nullptr;
+      return static_cast<X *>(p);
+    }
 #endif
+    return std::allocator<X>().allocate(n);
   }
   void deallocate(X *p, std::size_t n) noexcept {
     if (huge(n)) std::free(p);
