@@ -58,6 +58,10 @@ expect cli_usage_shows_on_error 2 "^usage: bvh.out" -- --nonsense
 expect cli_input_flag_missing_value 2 "-i needs a value|--input needs a value" -- -o "$o" -i
 expect cli_output_flag_missing_value 2 "-o needs a value|--output needs a value" -- -i $good -o
 expect cli_negative_threshold 2 "--split_threshold needs an integer from 1" -- -i $good -o "$o" --split_threshold -4
+expect cli_width_five 2 "--width needs 2, 3, 4 or 8, not '5'" -- -i $good -o "$o" --width 5
+expect cli_width_sixteen 2 "--width needs 2, 3, 4 or 8, not '16'" -- -i $good -o "$o" --width 16
+expect cli_width_not_a_number 2 "--width needs 2, 3, 4 or 8, not 'x'" -- -i $good -o "$o" --width x
+expect cli_width_missing_value 2 "--width needs a value" -- -i $good -o "$o" --width
 expect cli_fractional_depth 2 "--depth_limit needs an integer" -- -i $good -o "$o" --depth_limit 2.5
 expect cli_huge_number 2 "--split_threshold needs an integer" -- -i $good -o "$o" --split_threshold 99999999999999999999
 expect cli_empty_number 2 "--depth_limit needs (a value|an integer)" -- -i $good -o "$o" --depth_limit ""

@@ -31,7 +31,7 @@ export CXX COURSE_DATA BUILD JOBS
 # Arguments: none (every layer: make test), --quick (make check: bvh.out and
 # the unit tests at -Og, then the unit and golden layers), or layer names
 # (the full build, then only those layers: tests/run.sh valgrind golden).
-ALL_LAYERS="fuzz valgrind sanitizers cmake course_framework golden python_model unit portable cli_errors cli_output cli_threads demo examples asserts tsan browser"
+ALL_LAYERS="fuzz valgrind sanitizers cmake course_framework golden python_model unit portable cli_errors cli_output cli_threads cli_widths demo examples asserts tsan browser"
 QUICK=no
 ONLY=()
 for a in "$@"; do
@@ -471,6 +471,17 @@ cli_errors() {
   relay "cli_*" "$LOGS/cli_errors.log"
 }
 
+# bvh.out --width W: each tree and picture checked against the rules every
+# width shares, and what the width must not change (tests/cli_widths.sh).
+cli_widths() {
+  if have python3; then
+    bash tests/cli_widths.sh "$OUT/cli_widths" ./bvh.out >"$LOGS/cli_widths.log" 2>&1
+    relay "cli_width_*" "$LOGS/cli_widths.log"
+  else
+    bad python3_available "python3 is missing: apt-get install python3"
+  fi
+}
+
 # bvh.out --threads N: the same stdout and picture for every N (tests/cli_threads.sh).
 cli_threads() {
   bash tests/cli_threads.sh "$OUT/cli_threads" ./bvh.out "$COURSE_DATA" >"$LOGS/cli_threads.log" 2>&1
@@ -645,6 +656,7 @@ else
   layer cli_errors cli_errors
   layer python_model python_model
   layer cli_threads cli_threads
+  layer cli_widths cli_widths
   layer golden golden
   layer cli_output cli_output
   layer demo demo_layer
