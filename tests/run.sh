@@ -264,15 +264,19 @@ portable() {
   fi
 }
 
-# --no_output and the progress line of bvh.out (tests/cli_output.sh).
-cli_output() {
+# tests/NAME.sh DIR ./bvh.out, a script that needs python3, as results
+# named PREFIX*.
+python_script() { # NAME PREFIX
   if have python3; then
-    bash tests/cli_output.sh "$OUT/cli_output" ./bvh.out >"$LOGS/cli_output.log" 2>&1
-    relay "cli_output_*" "$LOGS/cli_output.log"
+    bash "tests/$1.sh" "$OUT/$1" ./bvh.out >"$LOGS/$1.log" 2>&1
+    relay "$2*" "$LOGS/$1.log"
   else
     bad python3_available "python3 is missing: apt-get install python3"
   fi
 }
+
+# --no_output and the progress line of bvh.out (tests/cli_output.sh).
+cli_output() { python_script cli_output cli_output_; }
 
 # BVH_ASSERT (tests/test_asserts.cpp): in a debug build each misuse of the
 # API aborts with a "BVH misuse" message; correct use near the edges fires
@@ -473,14 +477,7 @@ cli_errors() {
 
 # bvh.out --width W: each tree and picture checked against the rules every
 # width shares, and what the width must not change (tests/cli_widths.sh).
-cli_widths() {
-  if have python3; then
-    bash tests/cli_widths.sh "$OUT/cli_widths" ./bvh.out >"$LOGS/cli_widths.log" 2>&1
-    relay "cli_width_*" "$LOGS/cli_widths.log"
-  else
-    bad python3_available "python3 is missing: apt-get install python3"
-  fi
-}
+cli_widths() { python_script cli_widths cli_width_; }
 
 # bvh.out --threads N: the same stdout and picture for every N (tests/cli_threads.sh).
 cli_threads() {
