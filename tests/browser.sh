@@ -10,6 +10,8 @@
 # Prints "ok NAME" or "FAIL NAME reason" per case (read by tests/run.sh);
 # prints "skip REASON" and nothing else when Chromium is not installed.
 set -u
+# (tests/run.sh sets PYTHON: python3 found once, past any version manager's shim)
+PYTHON=${PYTHON:-python3}
 cd "$(dirname "$0")/.."
 out=$1 scene=$2
 browser=$(command -v chromium || command -v chromium-browser || true)
@@ -38,7 +40,7 @@ check() { # name expect(pass|fail) html window-size
     echo "FAIL $name Chromium wrote no screenshot: see $png.log"
     return
   fi
-  python3 tests/browser_check.py "$png" "$out/tree.txt" >"$out/$name.check" 2>&1
+  "$PYTHON" -S tests/browser_check.py "$png" "$out/tree.txt" >"$out/$name.check" 2>&1
   local rc=$?
   if [ "$expect" = pass ] && [ $rc -eq 0 ]; then
     echo "ok $name"

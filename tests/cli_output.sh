@@ -6,6 +6,8 @@
 # stdout. BVH_PROGRESS_DELAY=0 makes it show from the start (the default
 # waits a second). Prints `ok NAME` or `FAIL NAME why` per case.
 set -u
+# (tests/run.sh sets PYTHON: python3 found once, past any version manager's shim)
+PYTHON=${PYTHON:-python3}
 cd "$(dirname "$0")/.."
 dir=${1:-build/test-out/cli_output}
 bin=${2:-./bvh.out}
@@ -29,10 +31,10 @@ case_ no_output_writes_no_file "[ -z \"\$(ls -A '$dir/empty')\" ]" "left: $(ls -
 case_ no_output_prints_what_o_prints "cmp -s '$dir/no_output_pairs.txt' '$dir/with_output_pairs.txt' && grep -q '^overlapping pairs: ' '$dir/no_output_pairs.txt'"
 
 # Progress: with stderr on a terminal, every stage shows; stdout stays clean.
-python3 tests/stderr_on_tty.py "$dir/tty_stdout.txt" env BVH_PROGRESS_DELAY=0 "$bin" -i inputs/gen_overlap_1000.disks \
+"$PYTHON" -S tests/stderr_on_tty.py "$dir/tty_stdout.txt" env BVH_PROGRESS_DELAY=0 "$bin" -i inputs/gen_overlap_1000.disks \
   -o "$dir/tty.html" --depth_limit 8 --incremental --discard_overlap --print_tree >"$dir/tty_stderr.txt" 2>&1
 rc=$?
-python3 tests/stderr_on_tty.py "$dir/tty_bulk_stdout.txt" env BVH_PROGRESS_DELAY=0 "$bin" -i inputs/gen_1000.quads \
+"$PYTHON" -S tests/stderr_on_tty.py "$dir/tty_bulk_stdout.txt" env BVH_PROGRESS_DELAY=0 "$bin" -i inputs/gen_1000.quads \
   -o "$dir/tty_bulk.html" --depth_limit 4 --pairs >"$dir/tty_bulk_stderr.txt" 2>&1
 rc2=$?
 case_ progress_on_a_terminal_shows_reading_sampling_writing "[ $rc -eq 0 ] && grep -q 'bvh.out: reading inputs/gen_overlap_1000.disks: .* of 0.1 MB' '$dir/tty_stderr.txt' &&
@@ -51,13 +53,13 @@ BVH_PROGRESS_DELAY=0 "$bin" -i inputs/gen_overlap_1000.disks -o "$dir/redirected
 case_ progress_never_in_redirected_output "[ ! -s '$dir/redirected.err' ] && cmp -s '$dir/redirected.txt' '$dir/tty_stdout.txt' &&
   ! grep -q 'bvh.out:' '$dir/redirected.txt'" "stderr: $(head -c 200 "$dir/redirected.err")"
 # Without BVH_PROGRESS_DELAY a run shorter than a second shows nothing, even on a terminal.
-python3 tests/stderr_on_tty.py "$dir/quick_stdout.txt" "$bin" -i inputs/gen_36.disks -o "$dir/quick.html" --depth_limit 2 \
+"$PYTHON" -S tests/stderr_on_tty.py "$dir/quick_stdout.txt" "$bin" -i inputs/gen_36.disks -o "$dir/quick.html" --depth_limit 2 \
   >"$dir/quick_stderr.txt" 2>&1
 case_ progress_not_shown_for_a_quick_run "[ ! -s '$dir/quick_stderr.txt' ]" "got: $(head -c 200 "$dir/quick_stderr.txt" | od -An -c | head -3)"
 
 # --generate on a terminal: the shapes placed and the tries made, then the
 # writing; redirected, nothing; the scene is the same either way.
-python3 tests/stderr_on_tty.py "$dir/gen_tty_stdout.txt" env BVH_PROGRESS_DELAY=0 "$bin" --generate disks 100000 --seed 2 \
+"$PYTHON" -S tests/stderr_on_tty.py "$dir/gen_tty_stdout.txt" env BVH_PROGRESS_DELAY=0 "$bin" --generate disks 100000 --seed 2 \
   -o "$dir/gen_tty.disks" >"$dir/gen_tty_stderr.txt" 2>&1
 rc=$?
 BVH_PROGRESS_DELAY=0 "$bin" --generate disks 100000 --seed 2 -o "$dir/gen_redirected.disks" >"$dir/gen_redirected.txt" \

@@ -11,6 +11,8 @@
 # a tree of the wrong width and a picture with one colour changed.
 # Prints `ok NAME` or `FAIL NAME why` per case.
 set -u
+# (tests/run.sh sets PYTHON: python3 found once, past any version manager's shim)
+PYTHON=${PYTHON:-python3}
 cd "$(dirname "$0")/.."
 dir=${1:-build/test-out/cli_widths}
 bin=${2:-./bvh.out}
@@ -31,7 +33,7 @@ check() {
     return 1
   fi
   local why
-  if why=$(python3 tests/check_width.py "$w" "$shapes" "$split" "$depth" "$out.txt" "$out.html"); then
+  if why=$("$PYTHON" -S tests/check_width.py "$w" "$shapes" "$split" "$depth" "$out.txt" "$out.html"); then
     echo "ok cli_width_$name"
   else
     echo "FAIL cli_width_$name $why (see $out.txt)"
@@ -72,14 +74,14 @@ done
 
 # The checker can fail: width 8's tree is not width 4's, and one box
 # recoloured is seen.
-if python3 tests/check_width.py 4 1000 4 8 "$dir/8_bulk_disks.txt" >/dev/null; then
+if "$PYTHON" -S tests/check_width.py 4 1000 4 8 "$dir/8_bulk_disks.txt" >/dev/null; then
   echo "FAIL cli_width_checker_rejects_a_wider_tree check_width.py accepted width 8's tree as width 4's"
 else
   echo "ok cli_width_checker_rejects_a_wider_tree"
 fi
 sed '0,/fill:#ff0000;fill-opacity:0.25;stroke:#ff0000/s//fill:#00ff00;fill-opacity:0.25;stroke:#00ff00/' \
   "$dir/8_bulk_disks.html" >"$dir/recoloured.html"
-if python3 tests/check_width.py 8 1000 4 8 "$dir/8_bulk_disks.txt" "$dir/recoloured.html" >/dev/null; then
+if "$PYTHON" -S tests/check_width.py 8 1000 4 8 "$dir/8_bulk_disks.txt" "$dir/recoloured.html" >/dev/null; then
   echo "FAIL cli_width_checker_rejects_a_recoloured_box check_width.py accepted a box drawn in its sibling's colour"
 else
   echo "ok cli_width_checker_rejects_a_recoloured_box"

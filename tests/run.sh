@@ -56,7 +56,16 @@ ok() { echo "ok $1"; }
 bad() { echo "FAIL $1${2:+ — $2}"; }
 skip() { echo "skipped $1: $2"; }
 have() { command -v "$1" >/dev/null 2>&1; }
-logname() { echo "$LOGS/$(echo "$1" | tr -c 'A-Za-z0-9_.\n-' '_').log"; }
+# LOG=the log file of case NAME. (Here and in the waiting loops below, no
+# command substitution or external command: each process costs
+# milliseconds on a host where forks are dear, and a run has thousands.)
+logname() { LOG=$LOGS/${1//[^A-Za-z0-9_.-]/_}.log; }
+# The Python scripts' interpreter, found once: python3 on the PATH may be a
+# version manager's shim (pyenv's runs about a dozen processes, 0.3 s, at
+# every start). -S: they need the standard library only.
+PYTHON=python3
+if have python3; then PYTHON=$(python3 -c 'import sys; print(sys.executable or "python3")' 2>/dev/null) || PYTHON=python3; fi
+export PYTHON
 
 # A test binary built on tests/check.h: its own cases count one by one
 # (`ok-suite NAME: P passed, F failed` counts P; each failed case prints its
@@ -64,10 +73,10 @@ logname() { echo "$LOGS/$(echo "$1" | tr -c 'A-Za-z0-9_.\n-' '_').log"; }
 run_suite() {
   local name=$1
   shift
-  local log
-  log=$(logname "$name")
-  "$@" >"$log" 2>&1
-  suite_result "$name" "$log" $? "$1"
+  local LOG
+  logname "$name"
+  "$@" >"$LOG" 2>&1
+  suite_result "$name" "$LOG" $? "$1"
 }
 # The lines of a suite's log LOG (exit status RC, binary BIN).
 suite_result() {
@@ -94,9 +103,9 @@ suite_result() {
 run_case() {
   local name=$1
   shift
-  local log
-  log=$(logname "$name")
-  if "$@" >"$log" 2>&1; then ok "$name"; else bad "$name" "see $log"; fi
+  local LOG
+  logname "$name"
+  if "$@" >"$LOG" 2>&1; then ok "$name"; else bad "$name" "see $LOG"; fi
 }
 
 # A script's own `ok NAME`, `FAIL NAME why` and `skip REASON` lines, as results.
@@ -148,15 +157,22 @@ running_layers() {
   done
   echo "$list"
 }
-layers_running() {
-  local i n=0
-  for ((i = 0; i < ${#LAYERS[@]}; i++)); do [ -f "$RESULTS/$i.done" ] || n=$((n + 1)); done
-  echo $n
+# RUNNING=the number of layers still running.
+count_running() {
+  local i
+  RUNNING=0
+  for ((i = 0; i < ${#LAYERS[@]}; i++)); do [ -f "$RESULTS/$i.done" ] || RUNNING=$((RUNNING + 1)); done
 }
-# A fifth of a second of waiting (a layer starts that soon after a slot
-# frees): print what has ended, and the heartbeat when due.
+# A fifth of a second of waiting, by a read that times out on a FIFO no one
+# writes (the shell's own timer: no sleep process five times a second).
+mkfifo "$RESULTS/pause.fifo" && exec {pause_fd}<>"$RESULTS/pause.fifo"
+pause() {
+  if [ -n "${pause_fd:-}" ]; then read -r -t 0.2 -u "$pause_fd" _; else sleep 0.2; fi
+}
+# Waits a fifth of a second (a layer starts that soon after a slot frees),
+# then prints what has ended, and the heartbeat when due.
 tick() {
-  sleep 0.2
+  pause
   print_done_layers
   if [ $((SECONDS - LAST_LINE)) -ge "$HEARTBEAT" ]; then
     echo "   ... still running: $(running_layers)"
@@ -167,7 +183,7 @@ layer() {
   local name=$1
   shift
   if [ "${#ONLY[@]}" -gt 0 ] && [[ " ${ONLY[*]} " != *" $name "* ]]; then return; fi
-  while [ "$(layers_running)" -ge "$JOBS" ]; do tick; done
+  while count_running && [ "$RUNNING" -ge "$JOBS" ]; do tick; done
   local i=${#LAYERS[@]}
   LAYERS+=("$name")
   STARTED[$i]=$SECONDS
@@ -180,7 +196,7 @@ layer() {
   LAST_LINE=$SECONDS
 }
 finish_layers() {
-  while [ "$(layers_running)" -gt 0 ]; do tick; done
+  while count_running && [ "$RUNNING" -gt 0 ]; do tick; done
   wait
   print_done_layers
 }
@@ -209,18 +225,18 @@ unit_tests() {
 # run by the build, each at CHECK_SCALE of its random rounds, as soon as it
 # was built: here their output ($BUILD/check/test_*.out) is read.
 unit_tests_quick() {
-  local t out log rc
+  local t out LOG rc
   for t in bvh threads intersect dynamic moving lazy_handles parse; do
     out=$BUILD/check/test_$t.out
-    log=$(logname "test_$t")
+    logname "test_$t"
     if [ ! -f "$out" ]; then
-      : >"$log"
-      suite_result "test_$t" "$log" 1 "$BUILD/check/test_$t"
+      : >"$LOG"
+      suite_result "test_$t" "$LOG" 1 "$BUILD/check/test_$t"
       continue
     fi
     rc=$(tail -n 1 "$out" | sed -n 's/^exit status //p')
-    sed '$d' "$out" >"$log"
-    suite_result "test_$t" "$log" "${rc:-1}" "$BUILD/check/test_$t"
+    sed '$d' "$out" >"$LOG"
+    suite_result "test_$t" "$LOG" "${rc:-1}" "$BUILD/check/test_$t"
   done
 }
 
@@ -317,12 +333,13 @@ course_framework() {
 examples() {
   local src name
   for src in examples/*.cpp; do
-    name=$(basename "$src" .cpp)
+    name=${src##*/}
+    name=${name%.cpp}
     run_case "example_$name" bash -c "'$BUILD/example_$name' > '$OUT/example_$name.txt' &&
       cat '$OUT/example_$name.txt' && [ \"\$(tail -n 1 '$OUT/example_$name.txt')\" = ok ]"
   done
   if have python3; then
-    python3 tests/readme_quotes.py README.txt docs/*.txt -- examples/*.cpp
+    "$PYTHON" -S tests/readme_quotes.py README.txt docs/*.txt -- examples/*.cpp
   else
     bad python3_available "python3 is missing: apt-get install python3"
   fi
@@ -425,11 +442,11 @@ python_model() {
   if ! have python3; then
     bad python3_available "python3 is missing: apt-get install python3"
   elif [ -f "$COURSE_DATA/36.triangles" ]; then
-    run_case golden_course_agrees_with_python_model python3 tests/verify_golden.py course "$COURSE_DATA"
+    run_case golden_course_agrees_with_python_model "$PYTHON" -S tests/verify_golden.py course "$COURSE_DATA"
   else
     skip golden_course_agrees_with_python_model "no course data at COURSE_DATA=$COURSE_DATA"
   fi
-  have python3 && run_case golden_inputs_agrees_with_python_model python3 tests/verify_golden.py inputs inputs
+  have python3 && run_case golden_inputs_agrees_with_python_model "$PYTHON" -S tests/verify_golden.py inputs inputs
 }
 
 # A real browser: headless Chromium renders 36_triangles_2 (tests/browser.sh).
@@ -532,13 +549,13 @@ fuzz() {
     return
   fi
   mkdir -p "$BUILD/fuzz-work"
-  local log
-  log=$(logname fuzz_parser)
+  local LOG
+  logname fuzz_parser
   if "$BUILD/fuzz_parser" -max_total_time="${FUZZ_SECONDS:-15}" -print_final_stats=1 \
-    -artifact_prefix="$BUILD/fuzz-crash-" "$BUILD/fuzz-work" tests/fuzz_corpus >"$log" 2>&1; then
-    ok "fuzz_parser_${FUZZ_SECONDS:-15}s_$(grep -o 'number_of_executed_units: [0-9]*' "$log" | grep -o '[0-9]*$')_runs"
+    -artifact_prefix="$BUILD/fuzz-crash-" "$BUILD/fuzz-work" tests/fuzz_corpus >"$LOG" 2>&1; then
+    ok "fuzz_parser_${FUZZ_SECONDS:-15}s_$(grep -o 'number_of_executed_units: [0-9]*' "$LOG" | grep -o '[0-9]*$')_runs"
   else
-    bad fuzz_parser "a finding: see $log and $BUILD/fuzz-crash-*"
+    bad fuzz_parser "a finding: see $LOG and $BUILD/fuzz-crash-*"
   fi
 }
 
@@ -613,7 +630,7 @@ rm -f "$RESULTS/first-built"
 make_pid=$!
 last=$SECONDS
 while kill -0 "$make_pid" 2>/dev/null; do
-  sleep 0.2
+  pause
   if [ "$VALGRIND_EARLY" = no ] && [ -f "$RESULTS/first-built" ]; then
     VALGRIND_EARLY=yes
     echo "   (the unit suites and bvh.out are built: valgrind starts beside the rest of the build, $((SECONDS - build_start)) s)"
