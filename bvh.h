@@ -5665,8 +5665,9 @@ public:
   int split_threshold() const noexcept { return core_.split_threshold; }
   /// The depth limit (`unlimited`, i.e. 0, for none).
   int depth_limit() const noexcept { return core_.depth_limit; }
-  /// The box of everything stored; a default BoundingBox when empty (with
-  /// this project's shapes.h an empty box, with the course's the origin).
+  /// The box of everything stored, grown by margin() as the leaves' boxes
+  /// are; a default BoundingBox when empty (with this project's shapes.h an
+  /// empty box, with the course's the origin).
   BoundingBox bounds() const {
     if (core_.root < 0) return BoundingBox();
     const Box &b = core_.nodes.box(core_.root);

@@ -12,6 +12,8 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <thread>
+#include <utility>
 #include <vector>
 
 #include "bvh.h"
@@ -695,6 +697,298 @@ TEST(widths_5_and_7_match_models) {
   queries_against_brute_force<Disk, 7>(base_seed() + 3210);
   pairs_against_brute_force<Disk, 7>(base_seed() + 3220, 24);
   churn_against_model<Shape, 5>(base_seed() + 3300);
+}
+
+// ---------------------------------------------------------------------------
+// The facade's less used members: backward iteration at every width, the
+// box query's early stop, the tie rules of nearest() and first_hit(), the
+// parameters' clamps, getters, swap, bounds(), fill() and sah_cost().
+
+/// Every stored shape with its handle, in iteration order.
+template <class T, int W> std::vector<std::pair<const T *, std::uint32_t>> stored(const Tree<T, W> &tree) {
+  std::vector<std::pair<const T *, std::uint32_t>> v;
+  for (auto it = tree.begin(); it != tree.end(); ++it) v.emplace_back(&*it, it.id().id);
+  return v;
+}
+
+/// Forward, backward (pre and post), and a random walk of ++ and --,
+/// against the forward order, on trees built, grown and thinned by erase.
+template <class T, int W> void iteration_both_ways(unsigned seed) {
+  for (int round = 0; round < scaled(12); ++round) {
+    note(seed_note(seed, round, kind_at<T, W>()));
+    Maker make(seed + unsigned(round));
+    std::mt19937 &rng = make.rng;
+    int split, depth;
+    parameters(rng, split, depth);
+    Tree<T, W> tree(split, depth);
+    const std::vector<T> shapes = make.template scene<T>(int(rng() % 250), 30);
+    std::vector<typename Tree<T, W>::handle> handles;
+    if (round % 2) {
+      tree.construct(shapes);
+    } else {
+      for (const T &s : shapes) handles.push_back(tree.insert(s));
+      for (std::size_t i = 0; i < handles.size(); i += 3) tree.erase(handles[i]);
+    }
+    const auto forward = stored(tree);
+    CHECK_EQ(forward.size(), tree.size());
+    std::vector<const T *> backward, post_backward;
+    for (auto it = tree.end(); it != tree.begin();) backward.push_back(&*--it);
+    for (auto it = tree.end(); it != tree.begin();) {
+      it--;
+      post_backward.push_back(&*it);
+    }
+    std::reverse(backward.begin(), backward.end());
+    std::reverse(post_backward.begin(), post_backward.end());
+    CHECK_EQ(backward.size(), forward.size());
+    CHECK_EQ(post_backward.size(), forward.size());
+    for (std::size_t i = 0; i < forward.size() && i < backward.size() && i < post_backward.size(); ++i) {
+      CHECK(backward[i] == forward[i].first);
+      CHECK(post_backward[i] == forward[i].first);
+    }
+    if (forward.empty()) continue;
+    std::size_t at = 0; // a random walk: the iterator stays at forward[at]
+    auto it = tree.begin();
+    for (int step = 0; step < 200; ++step) {
+      if (rng() % 2 && at + 1 < forward.size()) {
+        ++it;
+        ++at;
+      } else if (at > 0) {
+        --it;
+        --at;
+      }
+      CHECK(&*it == forward[at].first);
+      CHECK_EQ(it.id().id, forward[at].second);
+    }
+  }
+}
+TEST(iteration_both_ways_at_widths_2_4_7_8) {
+  iteration_both_ways<Disk, 2>(base_seed() + 5000);
+  iteration_both_ways<Shape, 4>(base_seed() + 5100);
+  iteration_both_ways<Disk, 7>(base_seed() + 5200);
+  iteration_both_ways<Disk, 8>(base_seed() + 5300);
+}
+
+/// query(box, f) with f returning bool: false after the k-th shape stops
+/// the search there; true throughout visits every shape a scan finds.
+template <class T, int W> void box_query_stops(unsigned seed) {
+  for (int round = 0; round < scaled(10); ++round) {
+    note(seed_note(seed, round, kind_at<T, W>()));
+    Maker make(seed + unsigned(round));
+    const std::vector<T> shapes = make.template scene<T>(int(make.rng() % 300), 40);
+    Tree<T, W> tree(1 + int(make.rng() % 6));
+    tree.construct(shapes);
+    for (int q = 0; q < 20; ++q) {
+      const Point a(make.coord(-50, 1000), make.coord(-50, 1000));
+      const BoundingBox box(a, Point(a.x + make.coord(0, 300), a.y + make.coord(0, 300)));
+      std::size_t want = 0;
+      for (const T &s : shapes) want += s.getBox().overlaps(box);
+      std::size_t calls = 0;
+      tree.query(box, [&](const T &) { return ++calls > 0; });
+      CHECK_EQ(calls, want);
+      for (std::size_t k = 1; k <= 3; ++k) {
+        calls = 0;
+        tree.query(box, [&](const T &) { return ++calls < k; });
+        CHECK_EQ(calls, std::min(k, want));
+      }
+    }
+  }
+}
+TEST(box_query_stops_when_f_returns_false) {
+  box_query_stops<Disk, 3>(base_seed() + 5400);
+  box_query_stops<Shape, 8>(base_seed() + 5500);
+}
+
+/// Scenes where every shape is stored two or three times: nearest(p) and
+/// first_hit() must answer with the smallest handle among the equally
+/// near (equally first) shapes, as documented; the forms without the
+/// distance argument give the same shape.
+template <class T, int W> void ties_by_smallest_handle(unsigned seed) {
+  for (int round = 0; round < scaled(10); ++round) {
+    note(seed_note(seed, round, kind_at<T, W>()));
+    Maker make(seed + unsigned(round));
+    std::mt19937 &rng = make.rng;
+    std::vector<T> shapes = make.template scene<T>(1 + int(rng() % 120), 30);
+    const std::size_t distinct = shapes.size();
+    for (std::size_t i = 0; i < distinct; ++i)
+      for (unsigned c = 1 + rng() % 2; c > 0; --c) shapes.push_back(shapes[i]);
+    std::shuffle(shapes.begin(), shapes.end(), rng);
+    Tree<T, W> tree(1 + int(rng() % 5));
+    if (round % 2) {
+      for (const T &s : shapes) tree.insert(s);
+    } else {
+      tree.construct(shapes);
+    }
+    const auto all = stored(tree);
+    const auto handle_of = [&](const T *s) {
+      for (const auto &e : all)
+        if (e.first == s) return std::int64_t(e.second);
+      return std::int64_t(-1);
+    };
+    for (int q = 0; q < 30; ++q) {
+      const Point p(make.coord(-100, 1100), make.coord(-100, 1100));
+      double best = std::numeric_limits<double>::infinity();
+      for (const auto &e : all) best = std::min(best, distance(p, *e.first));
+      std::int64_t want = -1;
+      for (const auto &e : all)
+        if (distance(p, *e.first) == best && (want < 0 || e.second < want)) want = e.second;
+      double d = -1;
+      const T *near = tree.nearest(p, &d);
+      CHECK(d == best);
+      CHECK_EQ(handle_of(near), want);
+      CHECK(tree.nearest(p) == near);
+      const Point dir(make.coord(-1, 1), make.coord(-1, 1));
+      double first = std::numeric_limits<double>::infinity();
+      for (const auto &e : all) first = std::min(first, ray_hit(p, dir, *e.first));
+      std::int64_t want_hit = -1;
+      if (first < std::numeric_limits<double>::infinity())
+        for (const auto &e : all)
+          if (ray_hit(p, dir, *e.first) == first && (want_hit < 0 || e.second < want_hit)) want_hit = e.second;
+      double t = -1;
+      const T *hit = tree.first_hit(p, dir, &t);
+      CHECK(t == first);
+      CHECK_EQ(handle_of(hit), want_hit);
+      CHECK(tree.first_hit(p, dir) == hit);
+    }
+  }
+}
+TEST(nearest_and_first_hit_break_ties_by_smallest_handle) {
+  ties_by_smallest_handle<Disk, 3>(base_seed() + 5600);
+  ties_by_smallest_handle<Shape, 3>(base_seed() + 5700);
+  ties_by_smallest_handle<Disk, 8>(base_seed() + 5800);
+}
+
+TEST(parameters_out_of_range_are_clamped) {
+  const int depths[] = {0, -1, -1000};
+  for (int split : {0, -1, -7}) {
+    for (int depth : depths) {
+      Tree<Disk, 3> tree(split, depth);
+      CHECK_EQ(tree.split_threshold(), 1);
+      CHECK_EQ(tree.depth_limit(), int(Tree<Disk, 3>::unlimited));
+      Maker make(base_seed() + 5900 + unsigned(-split));
+      for (const Disk &d : make.scene<Disk>(40, 30)) tree.insert(d);
+      CHECK(tree.validate());
+      CHECK_EQ(tree.fill().shapes, 1.0); // one shape a leaf, nothing stopping the splits
+    }
+  }
+  Tree<Disk, 8> tree(5, 3);
+  CHECK_EQ(tree.split_threshold(), 5);
+  CHECK_EQ(tree.depth_limit(), 3);
+  for (const double m : {-1.0, -0.0, -std::numeric_limits<double>::infinity(), std::nan("")}) {
+    tree.set_margin(2.5);
+    CHECK_EQ(tree.margin(), 2.5);
+    tree.set_margin(m);
+    CHECK_EQ(tree.margin(), 0.0);
+  }
+}
+
+TEST(swap_exchanges_shapes_and_every_parameter) {
+  using T8 = Tree<Disk, 8>;
+  Maker make(base_seed() + 6000);
+  const std::vector<Disk> xs = make.scene<Disk>(50, 30), ys = make.scene<Disk>(7, 30);
+  T8 a(2, 5), b(9, 0);
+  a.construct(xs);
+  b.construct(ys);
+  a.set_margin(1.5);
+  a.set_build_rule(T8::BuildRule::sah);
+  a.set_build_threads(3);
+  b.set_build_threads(1);
+  swap(a, b); // the friend, found by argument-dependent lookup
+  CHECK(same_shapes(contents(a), ys));
+  CHECK(same_shapes(contents(b), xs));
+  CHECK_EQ(a.split_threshold(), 9);
+  CHECK_EQ(a.depth_limit(), int(T8::unlimited));
+  CHECK_EQ(a.margin(), 0.0);
+  CHECK(a.build_rule() == T8::BuildRule::course);
+  CHECK_EQ(a.build_threads(), 1u);
+  CHECK_EQ(b.split_threshold(), 2);
+  CHECK_EQ(b.depth_limit(), 5);
+  CHECK_EQ(b.margin(), 1.5);
+  CHECK(b.build_rule() == T8::BuildRule::sah);
+  CHECK_EQ(b.build_threads(), 3u);
+  CHECK(a.validate());
+  CHECK(b.validate());
+  b.set_build_threads(0); // 0: every core
+  const unsigned cores = std::thread::hardware_concurrency();
+  CHECK_EQ(b.build_threads(), cores > 0 ? cores : 1u);
+}
+
+/// bounds(): the union of the stored shapes' boxes (margin 0), that union
+/// grown by the margin otherwise, and an empty box for an empty tree.
+template <class T, int W> void bounds_are_the_union(unsigned seed) {
+  for (int round = 0; round < scaled(10); ++round) {
+    note(seed_note(seed, round, kind_at<T, W>()));
+    Maker make(seed + unsigned(round));
+    const std::vector<T> shapes = make.template scene<T>(int(make.rng() % 100), 50);
+    Tree<T, W> tree(3);
+    CHECK(tree.bounds().empty());
+    if (round % 2) tree.construct(shapes);
+    else for (const T &s : shapes) tree.insert(s);
+    BoundingBox want;
+    for (const T &s : shapes) want.extend(s.getBox());
+    CHECK(tree.bounds() == want);
+    if (shapes.empty()) continue;
+    tree.set_margin(4);
+    const BoundingBox grown(Point(want.getMin().x - 4, want.getMin().y - 4), Point(want.getMax().x + 4, want.getMax().y + 4));
+    CHECK(tree.bounds() == grown);
+    tree.clear();
+    CHECK(tree.bounds().empty());
+  }
+}
+TEST(bounds_are_the_union_of_the_shapes_boxes) {
+  bounds_are_the_union<Triangle, 3>(base_seed() + 6100);
+  bounds_are_the_union<Disk, 8>(base_seed() + 6200);
+}
+
+/// fill() and sah_cost() on trees whose values are known by hand, and
+/// against the tree's own counts and report elsewhere.
+TEST(fill_and_sah_cost_by_hand_and_against_the_report) {
+  // 27 disks in a row, split_threshold 1, the course's thirds: a full
+  // ternary tree of 13 inner nodes and 27 leaves of one disk.
+  std::vector<Disk> row;
+  for (int i = 0; i < 27; ++i) row.push_back(Disk(Point(10 + 30 * i, 500), 5, Color(1, 2, 3)));
+  Tree<Disk, 3> tree(1);
+  CHECK_EQ(tree.sah_cost(), 0.0);
+  const auto empty = tree.fill();
+  CHECK_EQ(empty.inner + empty.leaves, std::size_t(0));
+  tree.construct(row);
+  const auto f = tree.fill();
+  CHECK_EQ(f.inner, std::size_t(13));
+  CHECK_EQ(f.leaves, std::size_t(27));
+  CHECK_EQ(f.children, 1.0);
+  CHECK_EQ(f.shapes, 1.0);
+  // Leaves: 27 boxes of 10 x 10. Inner: the root (790 x 10), three of 250 x
+  // 10, nine of 70 x 10. In units of the 1000 x 1000 canvas.
+  const double want = (27 * 100.0 + 7900 + 3 * 2500 + 9 * 700) / 1e6;
+  CHECK(std::fabs(tree.sah_cost() - want) < 1e-12);
+  // One disk: a leaf of one shape, its box's area.
+  Tree<Disk, 8> one;
+  one.insert(Disk(Point(100, 100), 20, Color(0, 0, 0)));
+  CHECK(std::fabs(one.sah_cost() - 1600 / 1e6) < 1e-15);
+  // Random trees: fill() counts every node once, and sah_cost() is the sum
+  // of the two areas the report prints (3 decimals each).
+  for (int round = 0; round < scaled(10); ++round) {
+    note("fill and sah_cost, round " + std::to_string(round));
+    Maker make(base_seed() + 6300 + unsigned(round));
+    const std::vector<Shape> shapes = make.scene<Shape>(1 + int(make.rng() % 400), 30);
+    Tree<Shape, 8> wide(1 + int(make.rng() % 8), 8);
+    if (round % 2) wide.construct(shapes);
+    else for (const Shape &s : shapes) wide.insert(s);
+    const auto w = wide.fill();
+    CHECK_EQ(w.inner + w.leaves, wide.node_count());
+    CHECK(w.inner == 0 || (w.children > 0 && w.children <= 1));
+    CHECK(std::fabs(w.shapes * double(w.leaves) * wide.split_threshold() - double(shapes.size())) < 1e-6);
+    std::ostringstream report;
+    wide.statistics(report, false);
+    double inner = -1, leaf = -1;
+    std::string line;
+    std::istringstream lines(report.str());
+    while (std::getline(lines, line)) {
+      if (line.rfind("inner node area:", 0) == 0) inner = std::stod(line.substr(16));
+      if (line.rfind("leaf node area:", 0) == 0) leaf = std::stod(line.substr(15));
+    }
+    CHECK(inner >= 0 && leaf >= 0);
+    CHECK(std::fabs(wide.sah_cost() - (inner + leaf)) <= 0.0011);
+  }
 }
 
 } // namespace
