@@ -137,9 +137,23 @@ namespace {
 using ft::MDisk;
 using ft::TDisk;
 
+/// A disk type D whose trees are of width 8 (Tree<T>): the same faults on
+/// the wide tree's own paths (its leaf splits, least-enlargement descent,
+/// merges on erase).
+template <class D> class Wide : public D {
+public:
+  using D::D;
+  Wide() = default;
+};
+template <class T> struct width_of { static constexpr int value = bvh::detail::kCourseWidth; };
+template <class D> struct width_of<Wide<D>> { static constexpr int value = 8; };
+/// The tree a case runs on: the course's width 3, or 8 for Wide<D>.
+template <class T> using Tree = BVH<T, bvh::shape_traits<T>, width_of<T>::value>;
+
 template <class T> const char *type_name();
 template <> const char *type_name<TDisk>() { return "TDisk"; }
 template <> const char *type_name<MDisk>() { return "MDisk"; }
+template <> const char *type_name<Wide<TDisk>>() { return "TDisk width 8"; }
 
 using Key = std::tuple<double, double, double>;
 template <class T> Key key(const T &s) { return Key{s.getCenter().x, s.getCenter().y, s.getRadius()}; }
@@ -148,7 +162,7 @@ template <class T> Key key(const T &s) { return Key{s.getCenter().x, s.getCenter
 /// handles with their shapes.
 template <class T> struct State {
   std::vector<Key> order;
-  std::vector<std::pair<typename BVH<T>::handle, Key>> handles;
+  std::vector<std::pair<typename Tree<T>::handle, Key>> handles;
   std::vector<Key> sorted() const {
     std::vector<Key> v = order;
     std::sort(v.begin(), v.end());
@@ -158,8 +172,8 @@ template <class T> struct State {
 
 /// A tree and the handles of its shapes (the test's own record).
 template <class T> struct Subject {
-  BVH<T> tree;
-  std::vector<typename BVH<T>::handle> live;
+  Tree<T> tree;
+  std::vector<typename Tree<T>::handle> live;
   State<T> state() const {
     State<T> s;
     for (const T &x : tree) s.order.push_back(key(x));
@@ -269,8 +283,8 @@ template <class T> T random_disk(std::mt19937 &rng, double spread = 1000) {
 /// A tree of n random shapes, built by inserts (every shape's handle kept).
 template <class T>
 Subject<T> make_subject(std::mt19937 &rng, int n, int split, int depth, double margin, bool sah, bool sorted = false) {
-  Subject<T> s{BVH<T>(split, depth), {}};
-  if (sah) s.tree.set_build_rule(BVH<T>::BuildRule::sah);
+  Subject<T> s{Tree<T>(split, depth), {}};
+  if (sah) s.tree.set_build_rule(Tree<T>::BuildRule::sah);
   if (margin > 0) s.tree.set_margin(margin);
   std::vector<T> v;
   for (int i = 0; i < n; ++i) v.push_back(random_disk<T>(rng));
@@ -342,7 +356,7 @@ template <class T> void insert_case() {
       }
     }
     // Into an empty tree.
-    Subject<T> none{BVH<T>(c.split, c.depth), {}};
+    Subject<T> none{Tree<T>(c.split, c.depth), {}};
     if (c.margin > 0) none.tree.set_margin(c.margin);
     const T shape = random_disk<T>(rng);
     inject_both("insert", none,
@@ -363,6 +377,7 @@ template <class T> void insert_case() {
 }
 TEST(insert_is_strong_TDisk) { insert_case<TDisk>(); }
 TEST(insert_is_strong_MDisk) { insert_case<MDisk>(); }
+TEST(insert_is_strong_TDisk_width_8) { insert_case<Wide<TDisk>>(); }
 
 // ---------------------------------------------------------------------------
 // erase(handle), erase(iterator), erase(value)
@@ -426,6 +441,7 @@ template <class T> void erase_case() {
 }
 TEST(erase_is_strong_TDisk) { erase_case<TDisk>(); }
 TEST(erase_is_strong_MDisk) { erase_case<MDisk>(); }
+TEST(erase_is_strong_TDisk_width_8) { erase_case<Wide<TDisk>>(); }
 
 /// erase(value) is batched: each erase is strong, so after a throw some of
 /// the equal shapes are gone, the others stay, and nothing else changed.
@@ -439,7 +455,7 @@ template <class T> void erase_value_case() {
     const Key k = key(dup);
     auto forget = [&](Subject<T> &s) { // the test's record: dup's handles are no longer known
       s.live.erase(std::remove_if(s.live.begin(), s.live.end(),
-                                  [&](typename BVH<T>::handle h) { return !s.tree.contains(h) || key(s.tree.get(h)) == k; }),
+                                  [&](typename Tree<T>::handle h) { return !s.tree.contains(h) || key(s.tree.get(h)) == k; }),
                    s.live.end());
     };
     Subject<T> subject = base;
@@ -509,7 +525,7 @@ template <class T> void update_case() {
     }
   }
   // The last shape of a tree.
-  Subject<T> one{BVH<T>(), {}};
+  Subject<T> one{Tree<T>(), {}};
   one.live.push_back(one.tree.insert(T(Point(1, 1), 1)));
   const T far(Point(500, 500), 2);
   inject_both("update", one, [&](Subject<T> &s) { s.tree.update(s.live[0], far); },
@@ -519,6 +535,7 @@ template <class T> void update_case() {
 }
 TEST(update_is_strong_TDisk) { update_case<TDisk>(); }
 TEST(update_is_strong_MDisk) { update_case<MDisk>(); }
+TEST(update_is_strong_TDisk_width_8) { update_case<Wide<TDisk>>(); }
 
 // ---------------------------------------------------------------------------
 // set_margin, copies, moves, clear
@@ -537,7 +554,7 @@ template <class T> void margin_and_copy_case() {
     auto same = [&](const State<T> &before, const Subject<T> &s) { CHECK(s.state().order == before.order); };
     inject_both("copy constructor", base,
                 [&](Subject<T> &s) {
-                  BVH<T> copy(s.tree);
+                  Tree<T> copy(s.tree);
                   std::string why;
                   CHECK(copy.validate(&why));
                   CHECK_EQ(copy.size(), s.tree.size());
@@ -552,14 +569,14 @@ template <class T> void margin_and_copy_case() {
                 },
                 [&](const State<T> &, const Subject<T> &s) { CHECK(s.state().order == base.state().order); });
     // Moves, swap and clear allocate and copy nothing.
-    static_assert(std::is_nothrow_move_constructible<BVH<T>>::value, "moves are noexcept");
-    static_assert(std::is_nothrow_move_assignable<BVH<T>>::value, "moves are noexcept");
-    static_assert(noexcept(std::declval<BVH<T> &>().clear()), "clear() is noexcept");
-    static_assert(noexcept(std::declval<BVH<T> &>().swap(std::declval<BVH<T> &>())), "swap() is noexcept");
+    static_assert(std::is_nothrow_move_constructible<Tree<T>>::value, "moves are noexcept");
+    static_assert(std::is_nothrow_move_assignable<Tree<T>>::value, "moves are noexcept");
+    static_assert(noexcept(std::declval<Tree<T> &>().clear()), "clear() is noexcept");
+    static_assert(noexcept(std::declval<Tree<T> &>().swap(std::declval<Tree<T> &>())), "swap() is noexcept");
     for (Fault f : {Fault::copy, Fault::alloc}) {
       Subject<T> s = base, t = other;
       arm(f, 0);
-      BVH<T> moved(std::move(s.tree));
+      Tree<T> moved(std::move(s.tree));
       s.tree = std::move(t.tree);
       t.tree = std::move(moved);
       s.tree.swap(t.tree);
@@ -593,11 +610,11 @@ template <class T> void construct_case() {
       inject((c.sah ? "set_build_rule(sah), construct" : "construct"), base, f, Guarantee::basic,
              [&](Subject<T> &s) {
                s.live.clear(); // construct replaces every handle
-               if (c.sah) s.tree.set_build_rule(BVH<T>::BuildRule::sah);
+               if (c.sah) s.tree.set_build_rule(Tree<T>::BuildRule::sah);
                s.tree.construct(elements);
                fault::Pause bookkeeping;
                for (std::size_t i = 0; i < elements.size(); ++i)
-                 s.live.push_back(typename BVH<T>::handle{std::uint32_t(i)});
+                 s.live.push_back(typename Tree<T>::handle{std::uint32_t(i)});
              },
              [&](const State<T> &, const Subject<T> &s) {
                CHECK(s.tree.empty());
@@ -613,6 +630,7 @@ template <class T> void construct_case() {
 }
 TEST(construct_is_basic_TDisk) { construct_case<TDisk>(); }
 TEST(construct_is_basic_MDisk) { construct_case<MDisk>(); }
+TEST(construct_is_basic_TDisk_width_8) { construct_case<Wide<TDisk>>(); }
 
 // ---------------------------------------------------------------------------
 // Queries with a user intersect() that throws: nothing may change.
