@@ -296,6 +296,10 @@ TEST(k_nearest_triangles_and_quads) {
   nearest_against_brute<Triangle>(base_seed() + 3702, 0);
   nearest_against_brute<Quad>(base_seed() + 3703, 10);
 }
+TEST(k_nearest_mixed_shapes) {
+  nearest_against_brute<Shape>(base_seed() + 3707, 0);
+  nearest_against_brute<Shape, 8>(base_seed() + 3708, 25, 16);
+}
 
 /// At width W with `split` shapes a leaf (wide leaves read through their
 /// summaries, both in query() and in the range).
