@@ -991,6 +991,50 @@ TEST(fill_and_sah_cost_by_hand_and_against_the_report) {
   }
 }
 
+/// overlapping()'s iterator used by hand: ++, post-++, ->, copies (each
+/// an independent search from where it was), a default one as the end,
+/// and the order of query(shape, f).
+template <class T, int W> void overlap_iterator_by_hand(unsigned seed) {
+  for (int round = 0; round < scaled(8); ++round) {
+    note(seed_note(seed, round, kind_at<T, W>()));
+    Maker make(seed + unsigned(round));
+    Tree<T, W> tree(1 + int(make.rng() % 6));
+    tree.construct(make.template scene<T>(int(make.rng() % 300), 40));
+    for (int q = 0; q < 20; ++q) {
+      T probe;
+      make.make(probe, 120);
+      std::vector<const T *> want;
+      tree.query(probe, [&](const T &s) { want.push_back(&s); });
+      const auto range = tree.overlapping(probe);
+      typename Tree<T, W>::overlap_iterator it = range.begin(), end;
+      CHECK((it == end) == want.empty());
+      CHECK(range.end() == end);
+      std::size_t i = 0;
+      while (it != end && i < want.size()) {
+        CHECK(&*it == want[i]);
+        CHECK(it->getBox() == want[i]->getBox());
+        if (i % 2) {
+          const auto copy = it; // steps on by itself, from here
+          it++;
+          CHECK(&*copy == want[i]);
+          auto again = copy;
+          ++again;
+          CHECK(again == it);
+        } else {
+          ++it;
+        }
+        ++i;
+      }
+      CHECK_EQ(i, want.size());
+      CHECK(it == end);
+    }
+  }
+}
+TEST(overlap_iterator_by_hand) {
+  overlap_iterator_by_hand<Disk, 3>(base_seed() + 6400);
+  overlap_iterator_by_hand<Shape, 8>(base_seed() + 6500);
+}
+
 } // namespace
 
 int main(int argc, char **argv) {
