@@ -1035,6 +1035,32 @@ TEST(overlap_iterator_by_hand) {
   overlap_iterator_by_hand<Shape, 8>(base_seed() + 6500);
 }
 
+/// memory() at width 8, both build rules and after inserts: the parts
+/// that follow from the counts, the handle table lazy, the sum.
+TEST(memory_report_at_width_8) {
+  using T8 = Tree<Disk, 8>;
+  constexpr std::size_t kNode = sizeof(bvh::detail::Node<8>) + sizeof(bvh::detail::Info);
+  Maker make(base_seed() + 6600);
+  const std::vector<Disk> v = make.scene<Disk>(scaled(3000), 3);
+  for (int how = 0; how < 3; ++how) {
+    note("memory at width 8, " + std::string(how == 0 ? "course rule" : how == 1 ? "sah" : "inserts"));
+    T8 tree(16);
+    CHECK_EQ(tree.memory().total(), std::size_t(0));
+    if (how == 1) tree.set_build_rule(T8::BuildRule::sah);
+    if (how < 2) tree.construct(v);
+    else for (const Disk &d : v) tree.insert(d);
+    const T8::memory_use m = tree.memory();
+    CHECK_EQ(m.shapes, tree.size() * sizeof(Disk));
+    CHECK_EQ(m.shape_ids, tree.size() * 4);
+    CHECK(m.nodes >= tree.node_count() * kNode);
+    CHECK(m.build_transient >= tree.size() * sizeof(Disk));
+    CHECK_EQ(m.handles, std::size_t(0));
+    CHECK_EQ(m.total(), m.nodes + m.shapes + m.shape_ids + m.leaf_slack + m.pool_index + m.handles + m.free_ids + m.scratch);
+    (void)tree.contains(T8::handle{0});
+    CHECK(tree.memory().handles >= tree.size() * 8);
+  }
+}
+
 } // namespace
 
 int main(int argc, char **argv) {
