@@ -1061,6 +1061,68 @@ TEST(memory_report_at_width_8) {
   }
 }
 
+/// A Traits with state: ids into the caller's arrays (as
+/// examples/ids_into_arrays.cpp). Copies, moves and swaps carry the
+/// traits with the shapes, so each tree keeps reading its own arrays.
+struct Circles {
+  std::vector<double> x, y, r;
+};
+struct CircleIds {
+  const Circles *c;
+  bvh::bounds box(std::uint32_t i) const {
+    return {c->x[i] - c->r[i], c->y[i] - c->r[i], c->x[i] + c->r[i], c->y[i] + c->r[i]};
+  }
+  bvh::Point center(std::uint32_t i) const { return {c->x[i], c->y[i]}; }
+  bool intersect(std::uint32_t i, std::uint32_t j) const {
+    const double dx = c->x[i] - c->x[j], dy = c->y[i] - c->y[j], reach = c->r[i] + c->r[j];
+    return dx * dx + dy * dy <= reach * reach;
+  }
+};
+TEST(stateful_traits_travel_with_copies_moves_and_swaps) {
+  using IdTree = BVH<std::uint32_t, CircleIds>;
+  std::mt19937 rng(base_seed() + 6700);
+  std::uniform_real_distribution<double> coord(0, 1000), radius(1, 30);
+  Circles a, b; // two sets of circles under the same ids 0..n-1
+  for (Circles *c : {&a, &b})
+    for (int i = 0; i < 300; ++i) {
+      c->x.push_back(coord(rng));
+      c->y.push_back(coord(rng));
+      c->r.push_back(radius(rng));
+    }
+  // The ids a scan finds meeting circle i of `probe` in `arrays`.
+  const auto scan = [](const Circles &arrays, std::uint32_t i) {
+    std::vector<std::uint32_t> v;
+    for (std::uint32_t j = 0; j < arrays.x.size(); ++j)
+      if (CircleIds{&arrays}.intersect(i, j)) v.push_back(j);
+    return v;
+  };
+  const auto found = [](const IdTree &tree, std::uint32_t i) {
+    std::vector<std::uint32_t> v;
+    tree.query(i, [&](std::uint32_t j) { v.push_back(j); });
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  std::vector<std::uint32_t> ids(a.x.size());
+  for (std::uint32_t i = 0; i < ids.size(); ++i) ids[i] = i;
+  IdTree ta(4, 0, CircleIds{&a}), tb(4, 0, CircleIds{&b});
+  ta.construct(ids);
+  for (std::uint32_t i : ids) tb.insert(i);
+  IdTree copy(ta);
+  CHECK(copy.traits().c == &a);
+  swap(ta, tb);
+  CHECK(ta.traits().c == &b);
+  CHECK(tb.traits().c == &a);
+  IdTree moved(std::move(ta));
+  CHECK(moved.traits().c == &b);
+  for (std::uint32_t i = 0; i < ids.size(); i += 7) {
+    CHECK(found(copy, i) == scan(a, i));
+    CHECK(found(tb, i) == scan(a, i));
+    CHECK(found(moved, i) == scan(b, i));
+  }
+  CHECK(moved.validate());
+  CHECK(tb.validate());
+}
+
 } // namespace
 
 int main(int argc, char **argv) {
