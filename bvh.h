@@ -572,8 +572,9 @@ template <int W> struct CountCut {
 constexpr std::size_t kParallelMin = std::size_t(1) << 16;
 
 /// Calls f(0) ... f(count - 1), spread over `threads` threads (the caller
-/// is one of them). If a thread cannot be started, the others do its share;
-/// the first exception thrown by f is rethrown once all have finished.
+/// is one of them). If a thread cannot be started (no thread left, or no
+/// memory for it), the others do its share; the first exception thrown by
+/// f is rethrown once all have finished.
 template <class F> void parallel_for(std::size_t count, unsigned threads, F &&f) {
   std::atomic<std::size_t> next{0};
   std::exception_ptr error;
@@ -588,13 +589,15 @@ template <class F> void parallel_for(std::size_t count, unsigned threads, F &&f)
       }
     }
   };
+  // The pool's room first, so that starting a thread is the only step
+  // that can fail once one runs: whatever it throws (system_error,
+  // bad_alloc), no thread is left running past an exception, and the
+  // threads started and the caller do the work.
   std::vector<std::thread> pool;
-  for (unsigned k = 1; k < threads && k < count; ++k) {
-    try {
-      pool.emplace_back(work);
-    } catch (const std::system_error &) {
-      break;
-    }
+  try {
+    pool.reserve(std::min<std::size_t>(threads, count));
+    for (unsigned k = 1; k < threads && k < count; ++k) pool.emplace_back(work);
+  } catch (...) {
   }
   work();
   for (std::thread &t : pool) t.join();
