@@ -134,6 +134,52 @@ template <class T> void check_build_against_reference(unsigned seed) {
   }
 }
 
+// validate() itself: every other test trusts it to notice a broken tree,
+// so each kind of damage, done by hand to a copy of a sound tree, must be
+// reported, with the node and what it broke.
+template <int W> void validate_catches(unsigned seed) {
+  using Core = bvh::detail::Core<Disk, bvh::shape_traits<Disk>, W>;
+  Maker make(seed);
+  Core sound(bvh::shape_traits<Disk>(), W == 8 ? 16 : 4, 0);
+  bvh::detail::construct(sound, make.scene<Disk>(300, 20));
+  std::string why;
+  CHECK(bvh::detail::validate(sound, &why));
+  const int root = sound.root, child = sound.nodes.node(root).child(1);
+  const int leaf = sound.nodes.leftmost_leaf(root);
+  const auto expect = [&](const std::string &damage, const std::string &message, auto &&harm) {
+    Core broken = sound;
+    harm(broken);
+    std::string said;
+    note("width " + std::to_string(W) + ": " + damage);
+    CHECK(!bvh::detail::validate(broken, &said));
+    CHECK(said.find(message) != std::string::npos);
+    if (said.find(message) == std::string::npos) note("said: " + said);
+  };
+  expect("a count one too many", "shape count is not its subtree's",
+         [&](Core &c) { c.nodes.info(child).count += 1; });
+  expect("a depth off by one", "depth is not parent's + 1", [&](Core &c) { c.nodes.info(child).depth += 1; });
+  expect("the parent's float copy of a box", "parent's float box for it",
+         [&](Core &c) { c.nodes.node(root).lo_x[1] -= 1.0f; });
+  expect("a child index", "parent does not list it", [&](Core &c) { c.nodes.info(child).child_index = 0; });
+  expect("the root given a parent", "root has a parent", [&](Core &c) { c.nodes.info(root).parent = child; });
+  expect("a leaf's box larger than its shapes'", "tight box", [&](Core &c) {
+    bvh::detail::Box b = c.nodes.box(leaf);
+    b.x1 += 1;
+    c.nodes.set_box(leaf, b);
+  });
+  expect("size() one too many", "size() disagrees", [&](Core &c) { c.size += 1; });
+  if (bvh::detail::Node<W>::kCoded > 0 && sound.nodes.node(leaf).coded() > 0)
+    expect("a leaf summary's code", "summary code does not hold", [&](Core &c) {
+      c.nodes.node(leaf).set_codes(0, 0); // the code box of one corner
+    });
+  else
+    CHECK(W < 4); // (at widths 4 and 8 the leaf must have a summary to damage)
+}
+TEST(validate_reports_each_kind_of_damage) {
+  validate_catches<3>(base_seed() + 17);
+  validate_catches<8>(base_seed() + 18);
+}
+
 } // namespace
 
 // ---------------------------------------------------------------------------
