@@ -306,7 +306,7 @@ asserts() {
   fi
   for c in $cases; do
     run_case "bvh_assert_$c" bash -c "! '$BUILD/test_asserts' $c >'$OUT/assert_$c.out' 2>&1 &&
-      grep -q 'BVH misuse' '$OUT/assert_$c.out'"
+      grep -qE 'bvh\.h:[0-9]+: BVH misuse: .+ \(.+\)$' '$OUT/assert_$c.out'"
   done
   run_case bvh_assert_quiet_on_valid_use "$BUILD/test_asserts" valid
   run_case bvh_assert_off_under_ndebug "$BUILD/test_asserts_ndebug" valid

@@ -84,6 +84,52 @@ const Case cases[] = {
        t.insert(some_disks()[0]);
        t.erase(last);
      }},
+    {"id_of_end", [] {
+       BVH<Disk> t;
+       t.construct(some_disks());
+       std::printf("%u\n", unsigned(t.end().id().id));
+     }},
+    {"get_erased_handle", [] {
+       BVH<Disk> t;
+       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       t.insert(some_disks()[1]);
+       t.erase(h);
+       std::printf("%g\n", t.get(h).getRadius());
+     }},
+    {"find_erased_handle", [] {
+       BVH<Disk> t;
+       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       t.insert(some_disks()[1]);
+       t.erase(h);
+       std::printf("%d\n", int(t.find(h) == t.end()));
+     }},
+    {"erase_erased_handle", [] {
+       BVH<Disk> t;
+       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       t.insert(some_disks()[1]);
+       t.erase(h);
+       t.erase(h);
+     }},
+    {"update_erased_handle", [] {
+       BVH<Disk> t;
+       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       t.insert(some_disks()[1]);
+       t.erase(h);
+       t.update(h, some_disks()[2]);
+     }},
+    {"deref_overlap_end", [] {
+       BVH<Disk> t;
+       t.construct(some_disks());
+       const Disk probe = some_disks()[0];
+       std::printf("%g\n", (*t.overlapping(probe).end()).getRadius());
+     }},
+    {"increment_overlap_end", [] {
+       BVH<Disk> t;
+       t.construct(some_disks());
+       const Disk probe = some_disks()[0];
+       auto it = t.overlapping(probe).end();
+       ++it;
+     }},
 };
 
 } // namespace
