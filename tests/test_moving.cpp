@@ -8,7 +8,9 @@
 #include <iterator>
 #include <map>
 #include <random>
+#include <sstream>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -166,6 +168,88 @@ TEST(update_inside_the_leaf_keeps_iterators) {
   std::string why;
   CHECK(tree.validate(&why));
   CHECK(checked > 50);
+}
+
+/// The tree printed: every node's box and shapes (the course's report).
+template <class T> std::string printed(const T &tree) {
+  std::ostringstream s;
+  tree.statistics(s, true);
+  return s.str();
+}
+
+TEST(update_within_the_margin_does_no_tree_work) {
+  // With a margin m, a move smaller than m stays inside its leaf's fat box:
+  // the shape is replaced in place, no box changes, every iterator stays
+  // valid and the iteration order is the same.
+  for (int width = 0; width < 2; ++width) {
+    Maker make(base_seed() + 3450 + unsigned(width));
+    const std::vector<Disk> disks = make.scene<Disk>(400, 6);
+    const auto run = [&](auto &tree) {
+      using H = typename std::remove_reference_t<decltype(tree)>::handle;
+      tree.set_margin(5);
+      tree.construct(disks);
+      std::vector<std::pair<const Disk *, std::uint32_t>> order;
+      for (auto it = tree.begin(); it != tree.end(); ++it) order.emplace_back(&*it, it.id().id);
+      const std::string before = printed(tree);
+      const auto it = tree.begin();
+      for (std::uint32_t id = 0; id < disks.size(); id += 3) {
+        const Point c = disks[id].getCenter();
+        const Disk moved(Point(c.x + make.coord(-2, 2), c.y + make.coord(-2, 2)), disks[id].getRadius(),
+                         disks[id].getColor());
+        tree.update(H{id}, moved);
+        CHECK(tree.get(H{id}) == moved);
+      }
+      CHECK(&*it == order[0].first); // an iterator from before the moves
+      std::size_t i = 0;
+      for (auto at = tree.begin(); at != tree.end() && i < order.size(); ++at, ++i) {
+        CHECK(&*at == order[i].first);
+        CHECK_EQ(at.id().id, order[i].second);
+      }
+      CHECK_EQ(i, order.size());
+      // The report prints the shapes' own boxes too, so compare its
+      // node lines' boxes only: the fat boxes did not move.
+      const auto boxes = [](const std::string &text) {
+        std::string out;
+        std::istringstream lines(text);
+        for (std::string line; std::getline(lines, line);) out += line.substr(0, line.find("elements")) + "\n";
+        return out;
+      };
+      CHECK(boxes(printed(tree)) == boxes(before));
+      CHECK(tree.validate());
+    };
+    if (width == 0) {
+      BVH<Disk> tree(4, 0);
+      run(tree);
+    } else {
+      BVH<Disk, bvh::shape_traits<Disk>, 8> tree(16, 0);
+      run(tree);
+    }
+  }
+}
+
+TEST(update_out_of_its_leaf_is_erase_then_insert) {
+  // A move out of the leaf's box gives the tree erase(h) + insert() would
+  // give: the same report, node by node, and the handle back (the id rule
+  // hands the erased id to the next insert).
+  Maker make(base_seed() + 3460);
+  const std::vector<Disk> disks = make.scene<Disk>(300, 6);
+  Tree tree(3, 0);
+  tree.construct(disks);
+  int compared = 0;
+  for (int step = 0; step < scaled(60); ++step) {
+    const std::uint32_t id = std::uint32_t(make.rng() % disks.size());
+    const Disk moved(Point(make.coord(0, 1000), make.coord(0, 1000)), make.coord(1, 6), Color(1, 2, 3));
+    Tree by_hand(tree);
+    by_hand.erase(Handle{id});
+    const Handle again = by_hand.insert(moved);
+    tree.update(Handle{id}, moved);
+    note("step " + std::to_string(step) + " id " + std::to_string(id));
+    CHECK(again == Handle{id});
+    CHECK(printed(tree) == printed(by_hand));
+    ++compared;
+  }
+  CHECK(tree.validate());
+  CHECK(compared > 0);
 }
 
 TEST(handles_survive_copies_moves_and_rebuilds) {
