@@ -487,6 +487,8 @@ template <class T, int W = 3> void queries_against_brute_force(unsigned seed) {
       for (const T &s : shapes)
         if (model_intersect(s, probe)) want.push_back(s);
       CHECK(same_multiset(got, want));
+      std::vector<T> room(want.size() + 1);
+      CHECK(tree.query_into(probe, room.begin()) == room.begin() + long(want.size())); // returns its end
       CHECK_EQ(tree.collision(probe), !want.empty());
       probes.push_back(probe);
       expected.push_back(!want.empty());
