@@ -128,13 +128,19 @@
 // that its visit's state (a query's probe) stays in registers.
 // BVH_NOINLINE keeps a small function out of the queries that call it
 // once each, where inlining it only crowds their loops' registers.
-#if defined(__GNUC__)
+// Unoptimized builds (-O0: debugging, sanitizers) inline nothing: there
+// forced inlining buys no speed and copies each instrumented body into
+// every caller, which makes such builds compile far longer.
+#if defined(__GNUC__) && defined(__OPTIMIZE__)
 #define BVH_ALWAYS_INLINE inline __attribute__((always_inline))
 #define BVH_LAMBDA_INLINE __attribute__((always_inline))
-#define BVH_NOINLINE __attribute__((noinline))
 #else
 #define BVH_ALWAYS_INLINE inline
 #define BVH_LAMBDA_INLINE
+#endif
+#if defined(__GNUC__)
+#define BVH_NOINLINE __attribute__((noinline))
+#else
 #define BVH_NOINLINE
 #endif
 
