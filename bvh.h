@@ -3302,8 +3302,9 @@ template <class T, class Tr, int W> void construct(Core<T, Tr, W> &core, const s
 // ===========================================================================
 
 /// choose_child's pick among its first n children: least growth, ties to
-/// the smaller area, then the first. Branch-free: which child wins is
-/// data, and mispredicts cost more than the selects.
+/// the smaller area, then the first. (Its callers have made NaNs
+/// infinite.) Branch-free: which child wins is data, and mispredicts cost
+/// more than the selects.
 template <class F> inline int least_growth(int n, const F *growth, const F *area) {
   int best = 0;
   F best_growth = growth[0], best_area = area[0];
@@ -3375,27 +3376,33 @@ template <int W> BVH_ALWAYS_INLINE int choose_child(const Node<W> &node, const B
   }
 #endif
   double growth[W + W % 2], area[W + W % 2]; // (even: the passes below take two)
+  // A NaN growth or area counts as infinite, as in the float pick above.
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
   // Two children a pass, in double: the same operations as the scalar
   // path, so the same choice. _mm_max_pd(b, x) is std::max(x, b) and
-  // _mm_min_pd(b, x) is std::min(x, b), NaNs included. At odd widths the
-  // last pass reads one float past the row, inside the node; its lane is
-  // never chosen (c < num_children below).
+  // _mm_min_pd(b, x) is std::min(x, b), NaNs included; _mm_min_pd(v, inf)
+  // is v, or inf for a NaN v. At odd widths the last pass reads one float
+  // past the row, inside the node; its lane is never chosen (c <
+  // num_children below).
   const __m128d bx0 = _mm_set1_pd(box.x0), by0 = _mm_set1_pd(box.y0), bx1 = _mm_set1_pd(box.x1), by1 = _mm_set1_pd(box.y1);
+  const __m128d inf = _mm_set1_pd(std::numeric_limits<double>::infinity());
   for (int g = 0; g < W; g += 2) {
     const __m128d x0 = two_floats(node.lo_x + g), y0 = two_floats(node.lo_y + g);
     const __m128d x1 = two_floats(node.hi_x + g), y1 = two_floats(node.hi_y + g);
     const __m128d a = _mm_mul_pd(_mm_sub_pd(x1, x0), _mm_sub_pd(y1, y0));
     const __m128d grown = _mm_mul_pd(_mm_sub_pd(_mm_max_pd(bx1, x1), _mm_min_pd(bx0, x0)),
                                      _mm_sub_pd(_mm_max_pd(by1, y1), _mm_min_pd(by0, y0)));
-    _mm_storeu_pd(area + g, a);
-    _mm_storeu_pd(growth + g, _mm_sub_pd(grown, a));
+    _mm_storeu_pd(area + g, _mm_min_pd(a, inf));
+    _mm_storeu_pd(growth + g, _mm_min_pd(_mm_sub_pd(grown, a), inf));
   }
 #else
+  const double inf = std::numeric_limits<double>::infinity();
   for (int c = 0; c < W; ++c) {
     const double x0 = node.lo_x[c], y0 = node.lo_y[c], x1 = node.hi_x[c], y1 = node.hi_y[c];
-    area[c] = (x1 - x0) * (y1 - y0);
-    growth[c] = (std::max(x1, box.x1) - std::min(x0, box.x0)) * (std::max(y1, box.y1) - std::min(y0, box.y0)) - area[c];
+    const double a = (x1 - x0) * (y1 - y0);
+    const double g = (std::max(x1, box.x1) - std::min(x0, box.x0)) * (std::max(y1, box.y1) - std::min(y0, box.y0)) - a;
+    area[c] = a == a ? a : inf;
+    growth[c] = g == g ? g : inf;
   }
 #endif
   return node.child(least_growth(node.num_children, growth, area));

@@ -714,7 +714,8 @@ template <class T, int W> std::vector<std::pair<const T *, std::uint32_t>> store
 }
 
 /// Forward, backward (pre and post), and a random walk of ++ and --,
-/// against the forward order, on trees built, grown and thinned by erase.
+/// against the forward order, on trees built, grown and thinned by erase;
+/// the forward order against the leaves the report prints.
 template <class T, int W> void iteration_both_ways(unsigned seed) {
   for (int round = 0; round < scaled(12); ++round) {
     note(seed_note(seed, round, kind_at<T, W>()));
@@ -733,6 +734,21 @@ template <class T, int W> void iteration_both_ways(unsigned seed) {
     }
     const auto forward = stored(tree);
     CHECK_EQ(forward.size(), tree.size());
+    // The iteration order is the report's: the leaves in pre-order, each
+    // leaf's shapes in its order, as statistics(os, true) lists them.
+    std::ostringstream report;
+    tree.statistics(report, true);
+    std::string printed, iterated, line;
+    std::istringstream lines(report.str());
+    while (std::getline(lines, line)) {
+      const std::size_t at = line.find(" elements:");
+      if (at != std::string::npos) printed += line.substr(at + 10);
+    }
+    for (const auto &entry : forward) {
+      iterated += ' ';
+      bvh::detail::append_box(iterated, bvh::detail::Box::from(entry.first->getBox()));
+    }
+    CHECK(printed == iterated);
     std::vector<const T *> backward, post_backward;
     for (auto it = tree.end(); it != tree.begin();) backward.push_back(&*--it);
     for (auto it = tree.end(); it != tree.begin();) {
@@ -763,8 +779,9 @@ template <class T, int W> void iteration_both_ways(unsigned seed) {
     }
   }
 }
-TEST(iteration_both_ways_at_widths_2_4_7_8) {
+TEST(iteration_both_ways_at_widths_2_3_4_7_8) {
   iteration_both_ways<Disk, 2>(base_seed() + 5000);
+  iteration_both_ways<Triangle, 3>(base_seed() + 5050);
   iteration_both_ways<Shape, 4>(base_seed() + 5100);
   iteration_both_ways<Disk, 7>(base_seed() + 5200);
   iteration_both_ways<Disk, 8>(base_seed() + 5300);
@@ -1123,6 +1140,102 @@ TEST(stateful_traits_travel_with_copies_moves_and_swaps) {
   }
   CHECK(moved.validate());
   CHECK(tb.validate());
+}
+
+// ---------------------------------------------------------------------------
+// Two pieces every traversal and every insertion rely on, tested alone.
+
+/// IndexStack against a vector, pushed past its inline space into the
+/// heap part and popped back across the boundary, cleared in between.
+TEST(index_stack_matches_a_vector_across_its_inline_space) {
+  const unsigned seed = base_seed() + 6400;
+  note("BVH_SEED=" + std::to_string(seed));
+  std::mt19937 rng(seed);
+  bvh::detail::IndexStack stack;
+  std::vector<int> model;
+  std::size_t deepest = 0;
+  for (int phase = 0; phase < scaled(200); ++phase) {
+    if (rng() % 10 == 0) {
+      stack.clear();
+      model.clear();
+    }
+    const std::size_t target = rng() % (3 * bvh::detail::IndexStack::kInline);
+    while (model.size() < target) {
+      const int v = int(rng() % 1000000);
+      stack.push(v);
+      model.push_back(v);
+    }
+    deepest = std::max(deepest, model.size());
+    const std::size_t keep = rng() % (model.size() + 1);
+    while (model.size() > keep) {
+      CHECK(!stack.empty());
+      CHECK_EQ(stack.pop(), model.back());
+      model.pop_back();
+    }
+    CHECK_EQ(stack.empty(), model.empty());
+  }
+  CHECK(deepest > bvh::detail::IndexStack::kInline);
+  while (!model.empty()) {
+    CHECK_EQ(stack.pop(), model.back());
+    model.pop_back();
+  }
+  CHECK(stack.empty());
+}
+
+/// choose_child's rule at width W, on a hand-made node:
+/// least growth, ties to the smaller area, then the first; a child whose
+/// growth or area is NaN (a box with infinite sides) never wins unless
+/// every child's is; lanes past the last child never win.
+template <int W> void choose_child_rule() {
+  using bvh::detail::Box;
+  using bvh::detail::Node;
+  using bvh::detail::choose_child;
+  const float inf = std::numeric_limits<float>::infinity();
+  const auto make = [&](int n, const std::vector<std::array<float, 4>> &boxes) {
+    Node<W> node;
+    node.num_children = n;
+    for (int c = 0; c < W; ++c) {
+      // lanes past n: a box holding the probe, which would win if read
+      const std::array<float, 4> b = c < int(boxes.size()) ? boxes[std::size_t(c)] : std::array<float, 4>{0, 0, 1000, 1000};
+      node.lo_x[c] = b[0], node.lo_y[c] = b[1], node.hi_x[c] = b[2], node.hi_y[c] = b[3];
+      if (c < n) node.set_child(c, 100 + c);
+    }
+    return node;
+  };
+  const Box probe{500, 500, 510, 510};
+  note("choose_child at width " + std::to_string(W));
+  // A partly filled node where the width allows: lane W - 1 is then past
+  // its children. (Three children at least: two of them tie below.)
+  const int n = W > 3 ? W - 1 : W;
+  std::vector<std::array<float, 4>> far(static_cast<std::size_t>(n));
+  for (int c = 0; c < n; ++c) far[std::size_t(c)] = {float(10 * c), 0, float(10 * c + 5), 5};
+  // Least growth: the child nearest the probe (the last one).
+  CHECK_EQ(choose_child(make(n, far), probe), 100 + n - 1);
+  // Two children already hold the probe (growth 0): the smaller one.
+  auto holds = far;
+  holds[1] = {0, 0, 600, 600};
+  holds[std::size_t(n - 1)] = {490, 490, 520, 520};
+  CHECK_EQ(choose_child(make(n, holds), probe), 100 + n - 1);
+  // Both of the same size: the first.
+  holds[1] = {480, 480, 510, 510};
+  CHECK_EQ(choose_child(make(n, holds), probe), 101);
+  // Child 0 stretches to infinity (its area and growth NaN): it loses to
+  // every finite child, wherever it stands.
+  auto stretched = far;
+  stretched[0] = {-inf, 0, inf, 0};
+  CHECK_EQ(choose_child(make(n, stretched), probe), 100 + n - 1);
+  stretched[0] = far[0];
+  stretched[std::size_t(n - 1)] = {-inf, 0, inf, 0};
+  CHECK_EQ(choose_child(make(n, stretched), probe), 100 + n - 2);
+  // Every child's growth NaN: the first.
+  std::vector<std::array<float, 4>> all(std::size_t(n), std::array<float, 4>{-inf, 0, inf, 0});
+  CHECK_EQ(choose_child(make(n, all), probe), 100);
+}
+TEST(choose_child_least_growth_ties_and_nan_at_widths_3_4_5_8) {
+  choose_child_rule<3>();
+  choose_child_rule<4>();
+  choose_child_rule<5>();
+  choose_child_rule<8>();
 }
 
 } // namespace
