@@ -294,22 +294,24 @@ private:
 /// fixed blocks of kBlock elements. Growing never moves or copies what is
 /// stored, so a growing tree never holds two copies of its nodes at once,
 /// as std::vector's doubling would, and the slack is at most one block.
+/// Each block starts on a cache line (malloc promises only 16 bytes), so
+/// that a ternary Node, 64 bytes, is one line and not two.
 template <class X> class BlockVector {
+  static_assert(std::is_trivially_destructible<X>::value && std::is_trivially_copyable<X>::value,
+                "blocks are copied and freed without running element code");
+
 public:
   /// Empty, no block.
   BlockVector() = default;
   /// Deep copy.
   BlockVector(const BlockVector &other) : size_(other.size_) {
-    blocks_.reserve(other.blocks_.size());
-    for (const auto &b : other.blocks_) {
-      blocks_.emplace_back(new X[kBlock]);
-      std::copy(b.get(), b.get() + kBlock, blocks_.back().get());
-    }
+    reserve_blocks(other.items_.size());
+    for (const X *b : other.items_) std::memcpy(static_cast<void *>(add_block(false)), b, kBlock * sizeof(X));
   }
   /// Takes `other`'s blocks; `other` is left empty.
-  BlockVector(BlockVector &&other) noexcept : blocks_(std::move(other.blocks_)), size_(other.size_) {
-    other.blocks_.clear();
-    other.size_ = 0;
+  BlockVector(BlockVector &&other) noexcept
+      : items_(std::move(other.items_)), raw_(std::move(other.raw_)), size_(other.size_) {
+    other.clear();
   }
   /// Deep copy; self-assignment is safe.
   BlockVector &operator=(const BlockVector &other) {
@@ -319,23 +321,24 @@ public:
   /// Takes `other`'s blocks; `other` is left empty.
   BlockVector &operator=(BlockVector &&other) noexcept {
     if (this != &other) {
-      blocks_ = std::move(other.blocks_);
+      items_ = std::move(other.items_);
+      raw_ = std::move(other.raw_);
       size_ = other.size_;
-      other.blocks_.clear();
-      other.size_ = 0;
+      other.clear();
     }
     return *this;
   }
   /// Exchanges the contents.
   void swap(BlockVector &other) noexcept {
-    blocks_.swap(other.blocks_);
+    items_.swap(other.items_);
+    raw_.swap(other.raw_);
     std::swap(size_, other.size_);
   }
 
   /// Element i (< size()).
-  X &operator[](std::size_t i) { return blocks_[i >> kShift][i & kMask]; }
+  X &operator[](std::size_t i) { return items_[i >> kShift][i & kMask]; }
   /// Element i (< size()).
-  const X &operator[](std::size_t i) const { return blocks_[i >> kShift][i & kMask]; }
+  const X &operator[](std::size_t i) const { return items_[i >> kShift][i & kMask]; }
   /// The last element (not empty()).
   X &back() { return (*this)[size_ - 1]; }
   /// Number of elements.
@@ -344,11 +347,12 @@ public:
   bool empty() const { return size_ == 0; }
   /// Drops every element and block.
   void clear() noexcept {
-    blocks_.clear();
+    items_.clear();
+    raw_.clear();
     size_ = 0;
   }
   /// Makes room in the block table only: blocks come one at a time.
-  void reserve(std::size_t n) { blocks_.reserve((n + kMask) >> kShift); }
+  void reserve(std::size_t n) { reserve_blocks((n + kMask) >> kShift); }
   /// Grows to n elements (n >= size()), the new ones default-constructed.
   void resize(std::size_t n) {
     reserve(n);
@@ -357,9 +361,9 @@ public:
   /// Makes room for one more element: after it, emplace_back() cannot
   /// throw. Strong.
   void reserve_one() {
-    if (size_ == blocks_.size() << kShift) {
-      std::unique_ptr<X[]> block(new X[kBlock]()); // (owned before the table may grow)
-      blocks_.push_back(std::move(block));
+    if (size_ == items_.size() << kShift) {
+      reserve_blocks(items_.size() + 1);
+      add_block(true);
     }
   }
   /// Appends a default-constructed element (strong: if it throws, nothing
@@ -372,11 +376,37 @@ public:
   /// emplace_back expects).
   void pop_back() { (*this)[--size_] = X(); }
   /// Bytes held: the blocks, whole, and the block table.
-  std::size_t bytes() const { return blocks_.size() * kBlock * sizeof(X) + blocks_.capacity() * sizeof(blocks_[0]); }
+  std::size_t bytes() const {
+    return raw_.size() * kBlockBytes + items_.capacity() * sizeof(X *) + raw_.capacity() * sizeof(raw_[0]);
+  }
 
 private:
   static constexpr std::size_t kShift = 9, kBlock = std::size_t(1) << kShift, kMask = kBlock - 1;
-  std::vector<std::unique_ptr<X[]>> blocks_;
+  static constexpr std::size_t kLine = 64, kBlockBytes = kBlock * sizeof(X) + kLine - 1;
+  /// Room in both tables for n blocks (then add_block cannot throw there).
+  void reserve_blocks(std::size_t n) {
+    if (n <= items_.capacity() && n <= raw_.capacity()) return;
+    const std::size_t room = std::max(n, 2 * items_.size());
+    items_.reserve(room);
+    raw_.reserve(room);
+  }
+  /// A new block, its elements value-initialized (`init`) or left for the
+  /// caller to copy into; the tables have room (reserve_blocks).
+  X *add_block(bool init) {
+    std::unique_ptr<unsigned char[]> raw(new unsigned char[kBlockBytes]);
+    const std::size_t skip = (kLine - reinterpret_cast<std::uintptr_t>(raw.get()) % kLine) % kLine;
+    unsigned char *first = raw.get() + skip;
+    for (std::size_t i = 0; i < kBlock; ++i) {
+      void *at = first + i * sizeof(X);
+      if (init) ::new (at) X();
+      else ::new (at) X;
+    }
+    raw_.push_back(std::move(raw)); // (no throw: reserved)
+    items_.push_back(reinterpret_cast<X *>(first));
+    return items_.back();
+  }
+  std::vector<X *> items_;                           // each block's first element, on a cache line
+  std::vector<std::unique_ptr<unsigned char[]>> raw_; // what each block's allocation returned
   std::size_t size_ = 0;
 };
 

@@ -714,44 +714,66 @@ TEST(split_in_two_builds_what_the_loop_builds) {
 }
 
 // The node arrays against std::vector as the model: random appends, writes
-// and pops across block boundaries, then copies and moves.
+// and pops across block boundaries, then copies and moves; every block's
+// first element on a cache line. The element is like a Node: trivially
+// copyable, with default member values that a new element must show.
+struct Cell {
+  int value[3] = {0, 0, 0};
+  int writes = 0;
+  bool operator==(const Cell &o) const {
+    return writes == o.writes && value[0] == o.value[0] && value[1] == o.value[1] && value[2] == o.value[2];
+  }
+};
 TEST(block_vector_behaves_like_a_vector) {
   const unsigned seed = base_seed() + 7;
   note("seed " + std::to_string(seed));
   std::mt19937 rng(seed);
-  bvh::detail::BlockVector<std::vector<int>> blocks;
-  std::vector<std::vector<int>> model;
+  bvh::detail::BlockVector<Cell> blocks;
+  std::vector<Cell> model;
   for (int step = 0; step < scaled(20000); ++step) {
     const unsigned op = rng() % 10;
     if (op < 6 || model.empty()) {
       blocks.emplace_back();
       model.emplace_back();
-      CHECK(blocks.back().empty()); // appended elements start default
+      CHECK(blocks.back() == Cell()); // appended elements start default
     } else if (op < 9) {
-      // Half the writes go to the last element, so pops drop non-empty ones.
+      // Half the writes go to the last element, so pops drop written ones.
       const std::size_t i = rng() % 2 ? model.size() - 1 : rng() % model.size();
       const int v = int(rng() % 1000);
-      blocks[i].push_back(v);
-      model[i].push_back(v);
+      for (Cell *c : {&blocks[i], &model[i]}) c->value[c->writes++ % 3] = v;
     } else {
       blocks.pop_back();
       model.pop_back();
     }
   }
-  CHECK_EQ(blocks.size(), model.size());
-  bool same = true;
-  for (std::size_t i = 0; i < model.size(); ++i) same = same && blocks[i] == model[i];
-  CHECK(same);
-  bvh::detail::BlockVector<std::vector<int>> copy = blocks;
-  if (!model.empty()) copy[0].push_back(-1); // deep: the original keeps its own
-  CHECK(model.empty() || blocks[0] == model[0]);
+  const auto same_as_model = [&](const bvh::detail::BlockVector<Cell> &b) {
+    bool same = b.size() == model.size();
+    for (std::size_t i = 0; same && i < model.size(); ++i) same = b[i] == model[i];
+    return same;
+  };
+  CHECK(same_as_model(blocks));
+  for (std::size_t i = 0; i < model.size(); i += 512)
+    CHECK(reinterpret_cast<std::uintptr_t>(&blocks[i]) % 64 == 0);
+  bvh::detail::BlockVector<Cell> copy = blocks;
+  if (!model.empty()) copy[0].writes = -1; // deep: the original keeps its own
+  CHECK(same_as_model(blocks));
   copy = blocks;
-  const bvh::detail::BlockVector<std::vector<int>> moved = std::move(copy);
+  CHECK(same_as_model(copy));
+  for (std::size_t i = 0; i < model.size(); i += 512)
+    CHECK(reinterpret_cast<std::uintptr_t>(&copy[i]) % 64 == 0);
+  // Past the end, a copy's elements are default too: it grows as the
+  // original would.
+  for (int i = 0; i < 600; ++i) {
+    copy.emplace_back();
+    CHECK(copy.back() == Cell());
+    copy.pop_back();
+    copy.emplace_back();
+    copy.back().writes = i + 1;
+  }
+  const bvh::detail::BlockVector<Cell> moved = std::move(copy);
   CHECK(copy.empty());
-  CHECK_EQ(moved.size(), model.size());
-  same = true;
-  for (std::size_t i = 0; i < model.size(); ++i) same = same && moved[i] == model[i];
-  CHECK(same);
+  CHECK_EQ(moved.size(), model.size() + 600);
+  CHECK(moved.bytes() >= moved.size() * sizeof(Cell));
 }
 
 // select_nth (the wide builds' selection) against the definition of
