@@ -295,7 +295,9 @@ private:
 /// stored, so a growing tree never holds two copies of its nodes at once,
 /// as std::vector's doubling would, and the slack is at most one block.
 /// Each block starts on a cache line (malloc promises only 16 bytes), so
-/// that a ternary Node, 64 bytes, is one line and not two.
+/// that a ternary Node, 64 bytes, is one line and not two. Elements are
+/// constructed as they are appended: a small tree's copy copies its
+/// nodes, not whole blocks, and a block's pages are touched as it fills.
 template <class X> class BlockVector {
   static_assert(std::is_trivially_destructible<X>::value && std::is_trivially_copyable<X>::value,
                 "blocks are copied and freed without running element code");
@@ -306,7 +308,12 @@ public:
   /// Deep copy.
   BlockVector(const BlockVector &other) : size_(other.size_) {
     reserve_blocks(other.items_.size());
-    for (const X *b : other.items_) std::memcpy(static_cast<void *>(add_block(false)), b, kBlock * sizeof(X));
+    std::size_t left = other.size_;
+    for (const X *b : other.items_) {
+      const std::size_t n = std::min(left, kBlock);
+      std::uninitialized_copy_n(b, n, add_block());
+      left -= n;
+    }
   }
   /// Takes `other`'s blocks; `other` is left empty.
   BlockVector(BlockVector &&other) noexcept
@@ -363,18 +370,18 @@ public:
   void reserve_one() {
     if (size_ == items_.size() << kShift) {
       reserve_blocks(items_.size() + 1);
-      add_block(true);
+      add_block();
     }
   }
-  /// Appends a default-constructed element (strong: if it throws, nothing
+  /// Appends a value-initialized element (strong: if it throws, nothing
   /// changed).
   void emplace_back() {
     reserve_one();
+    ::new (static_cast<void *>(items_[size_ >> kShift] + (size_ & kMask))) X();
     ++size_;
   }
-  /// Removes the last element (reset to its default, as the next
-  /// emplace_back expects).
-  void pop_back() { (*this)[--size_] = X(); }
+  /// Removes the last element.
+  void pop_back() { --size_; }
   /// Bytes held: the blocks, whole, and the block table.
   std::size_t bytes() const {
     return raw_.size() * kBlockBytes + items_.capacity() * sizeof(X *) + raw_.capacity() * sizeof(raw_[0]);
@@ -390,19 +397,13 @@ private:
     items_.reserve(room);
     raw_.reserve(room);
   }
-  /// A new block, its elements value-initialized (`init`) or left for the
-  /// caller to copy into; the tables have room (reserve_blocks).
-  X *add_block(bool init) {
+  /// A new block, room for kBlock elements not yet constructed; the
+  /// tables have room for it (reserve_blocks).
+  X *add_block() {
     std::unique_ptr<unsigned char[]> raw(new unsigned char[kBlockBytes]);
     const std::size_t skip = (kLine - reinterpret_cast<std::uintptr_t>(raw.get()) % kLine) % kLine;
-    unsigned char *first = raw.get() + skip;
-    for (std::size_t i = 0; i < kBlock; ++i) {
-      void *at = first + i * sizeof(X);
-      if (init) ::new (at) X();
-      else ::new (at) X;
-    }
     raw_.push_back(std::move(raw)); // (no throw: reserved)
-    items_.push_back(reinterpret_cast<X *>(first));
+    items_.push_back(reinterpret_cast<X *>(raw_.back().get() + skip));
     return items_.back();
   }
   std::vector<X *> items_;                           // each block's first element, on a cache line
