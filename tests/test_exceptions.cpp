@@ -19,6 +19,7 @@
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
 #include <map>
 #include <new>
 #include <random>
@@ -130,6 +131,31 @@ template <class S> bool intersect_counted(const S &a, const S &b) {
 }
 bool intersect(const TDisk &a, const TDisk &b) { return intersect_counted(a, b); }
 bool intersect(const MDisk &a, const MDisk &b) { return intersect_counted(a, b); }
+
+// distance() and ray_hit(), the nearest searches' and the ray's geometry,
+// on the same countdown.
+inline void geometry_counted() {
+  if (fault::intersect_countdown >= 0 && fault::intersect_countdown-- == 0) {
+    fault::fired = true;
+    throw fault::InjectedIntersect();
+  }
+}
+double distance(const Point &p, const TDisk &d) {
+  geometry_counted();
+  return ::bvh::distance(p, static_cast<const Disk &>(d));
+}
+double distance(const Point &p, const MDisk &d) {
+  geometry_counted();
+  return ::bvh::distance(p, static_cast<const Disk &>(d));
+}
+double ray_hit(const Point &origin, const Point &dir, const TDisk &d) {
+  geometry_counted();
+  return ::bvh::ray_hit(origin, dir, static_cast<const Disk &>(d));
+}
+double ray_hit(const Point &origin, const Point &dir, const MDisk &d) {
+  geometry_counted();
+  return ::bvh::ray_hit(origin, dir, static_cast<const Disk &>(d));
+}
 
 } // namespace ft
 
@@ -638,7 +664,8 @@ TEST(construct_is_basic_MDisk) { construct_case<MDisk>(); }
 TEST(construct_is_basic_TDisk_width_8) { construct_case<Wide<TDisk>>(); }
 
 // ---------------------------------------------------------------------------
-// Queries with a user intersect() that throws: nothing may change.
+// Queries with a user intersect(), distance() or ray_hit() that throws:
+// nothing may change.
 
 template <class T> void query_case() {
   std::mt19937 rng(base_seed() + 6);
@@ -667,7 +694,7 @@ template <class T> void query_case() {
         if (!met) break;
       }
       CHECK(k > 0);
-      points()[std::string(type_name<T>()) + " " + name + " / intersect"] += k;
+      points()[std::string(type_name<T>()) + " " + name + " / geometry"] += k;
     };
     run("collision", [&] { (void)s.tree.collision(probe); });
     run("query(shape)", [&] { s.tree.query(probe, [](const T &) {}); });
@@ -675,10 +702,18 @@ template <class T> void query_case() {
       for (const T &x : s.tree.overlapping(probe)) (void)x;
     });
     run("for_each_overlapping_pair", [&] { s.tree.for_each_overlapping_pair([](const T &, const T &) {}); });
+    // The nearest searches, one answer and more answers (40) than their
+    // inline room, and the ray.
+    run("nearest", [&] { (void)s.tree.nearest(Point(480, 530)); });
+    run("nearest(p, k)", [&] {
+      std::vector<typename Tree<T>::neighbor> out;
+      s.tree.nearest(Point(480, 530), 40, std::back_inserter(out));
+    });
+    run("first_hit", [&] { (void)s.tree.first_hit(Point(-10, 505), Point(1, 0)); });
   }
 }
-TEST(queries_with_throwing_intersect_TDisk) { query_case<TDisk>(); }
-TEST(queries_with_throwing_intersect_MDisk) { query_case<MDisk>(); }
+TEST(queries_with_throwing_geometry_TDisk) { query_case<TDisk>(); }
+TEST(queries_with_throwing_geometry_MDisk) { query_case<MDisk>(); }
 
 // ---------------------------------------------------------------------------
 // The handle table, built on the first lookup (issue 19): with the k-th
