@@ -108,8 +108,13 @@ $(BUILD)/test_asserts_throwing: tests/test_asserts.cpp $(HEADERS) | $(BUILD)
 # (TSAN_CXX: tests/run.sh sets clang++ when it is installed, which compiles
 # and runs these in about 60% of g++'s time.)
 TSAN_CXX ?= $(CXX)
+TSAN_FLAGS := -std=c++17 -O0 -g1 -Wall -Wextra -pedantic -fsanitize=thread
 $(BUILD)/test_%_tsan: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
-	$(TSAN_CXX) -std=c++17 -O0 -g1 -Wall -Wextra -pedantic -fsanitize=thread -I. -Itests $< -o $@
+	$(TSAN_CXX) $(TSAN_FLAGS) -I. -Itests $< -o $@
+# (insert_disjoint's lanes under TSan from two threads on every tree: the
+# override BVH_DISJOINT_LANES_THREADS, which no other build sets)
+$(BUILD)/test_disjoint_tsan: tests/test_disjoint.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+	$(TSAN_CXX) $(TSAN_FLAGS) -DBVH_DISJOINT_LANES_THREADS=2 -I. -Itests $< -o $@
 
 $(BUILD)/example_%: examples/%.cpp $(HEADERS) | $(BUILD)
 	$(CXX) $(EXAMPLE_CXXFLAGS) -I. $< -o $@
