@@ -360,7 +360,7 @@ public:
   }
   /// Makes room in the block table only: blocks come one at a time.
   void reserve(std::size_t n) { reserve_blocks((n + kMask) >> kShift); }
-  /// Grows to n elements (n >= size()), the new ones default-constructed.
+  /// Grows to n elements (n >= size()), the new ones value-initialized.
   void resize(std::size_t n) {
     reserve(n);
     while (size_ < n) emplace_back();
