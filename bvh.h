@@ -3628,7 +3628,8 @@ BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr, W> &core, const T &shape, st
       throw;
     }
     core.root = root;
-    nodes.set_box(root, box);
+    // (fitted, not `box`: a NaN side stays out of a box, as in every union)
+    nodes.set_box(root, core.fitted_box(root));
     nodes.info(root).count = 1;
     core.size = 1;
     return root;
@@ -3824,7 +3825,7 @@ template <class T, class Tr, int W> void update_shape(Core<T, Tr, W> &core, std:
       leaf.set_coded(coded);
     }
     if (core.size == 1) // the last shape: its leaf is the root, fitted to it
-      nodes.set_box(at.leaf, core.fat(box));
+      nodes.set_box(at.leaf, core.fitted_box(at.leaf));
     else if (core.margin == 0)
       core.refit_up(at.leaf);
     return;

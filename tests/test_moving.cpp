@@ -230,26 +230,37 @@ TEST(update_within_the_margin_does_no_tree_work) {
 TEST(update_out_of_its_leaf_is_erase_then_insert) {
   // A move out of the leaf's box gives the tree erase(h) + insert() would
   // give: the same report, node by node, and the handle back (the id rule
-  // hands the erased id to the next insert).
+  // hands the erased id to the next insert). A random destination may
+  // fall inside the leaf's box; update() then replaces the shape in place,
+  // where it was (its address unchanged, and the leaf's order with it):
+  // such steps are not this case and are not compared.
   Maker make(base_seed() + 3460);
   const std::vector<Disk> disks = make.scene<Disk>(300, 6);
   Tree tree(3, 0);
   tree.construct(disks);
-  int compared = 0;
+  int compared = 0, in_place = 0;
   for (int step = 0; step < scaled(60); ++step) {
     const std::uint32_t id = std::uint32_t(make.rng() % disks.size());
     const Disk moved(Point(make.coord(0, 1000), make.coord(0, 1000)), make.coord(1, 6), Color(1, 2, 3));
     Tree by_hand(tree);
     by_hand.erase(Handle{id});
     const Handle again = by_hand.insert(moved);
+    const Disk *where = &tree.get(Handle{id});
     tree.update(Handle{id}, moved);
     note("step " + std::to_string(step) + " id " + std::to_string(id));
     CHECK(again == Handle{id});
+    CHECK(tree.get(Handle{id}) == moved);
+    if (&tree.get(Handle{id}) == where) {
+      ++in_place;
+      continue;
+    }
     CHECK(printed(tree) == printed(by_hand));
     ++compared;
   }
   CHECK(tree.validate());
-  CHECK(compared > 0);
+  // (of the 60 steps, at most 1 is in place at seeds 1 to 300)
+  CHECK(compared >= scaled(60) - std::max(3, scaled(60) / 10));
+  (void)in_place;
 }
 
 TEST(handles_survive_copies_moves_and_rebuilds) {
