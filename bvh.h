@@ -3019,7 +3019,7 @@ void build_top_down(Core<T, Tr, W> &core, std::vector<BuildTask<typename Rule::S
 /// How build_at() cuts.
 enum class Cut {
   by_rule, ///< the tree's build rule
-  in_order ///< InOrderRule: iteration order survives (erase's repairs)
+  in_order ///< InOrderRule: iteration order survives (erase(iterator)'s repairs)
 };
 
 /// build_at()'s course-rule build by the shared loop.
@@ -3705,15 +3705,22 @@ template <class T, class Tr, int W> void uncount_up(Core<T, Tr, W> &core, int n)
 ///     with too few children or too few shapes;
 ///  3. (erase_shape) the highest lopsided ancestor of what changed is
 ///     rebuilt (find_scapegoat), so depth stays O(log n) under any churn.
-/// Rebuilds here split the shapes in their leaf order (Cut::in_order), so
-/// iteration order survives an erase. A rebuild of m shapes costs O(m log
-/// m) and, as for inserts, needs Omega(m) erases below the node to recur.
+/// Rebuilds here cut the shapes as `how` says: in their leaf order
+/// (Cut::in_order), so that iteration order survives an erase
+/// (erase(iterator) promises it), or by the build rule (Cut::by_rule:
+/// erase(handle), erase(value) and update(), which promise no order). An
+/// in-order rebuild is balanced by count but not in space: where the old
+/// children were lopsided its equal cuts mix them, and near the root,
+/// after many moves, that has doubled the tree's SAH cost. A rebuild of m
+/// shapes costs O(m log m) and, as for inserts, needs Omega(m) erases
+/// below the node to recur.
 /// Strong: the node to mend is found before anything changes and rebuilt
 /// beside the old subtree from copies. With `undo` (update()), the old
 /// slot or subtree is kept aside: undo_erase() puts it back,
 /// commit_erase() gives it back. The tree must hold more than one shape.
 template <class T, class Tr, int W>
-std::uint32_t erase_at(Core<T, Tr, W> &core, int leaf, std::size_t index, int *changed, EraseUndo<T> *undo = nullptr) {
+std::uint32_t erase_at(Core<T, Tr, W> &core, int leaf, std::size_t index, int *changed, EraseUndo<T> *undo = nullptr,
+                       Cut how = Cut::in_order) {
   NodeStore<W> &nodes = core.nodes;
   BVH_INVARIANT(core.size > 1, "erase_at() of the last shape");
   int mend = nodes.node(leaf).leaf().count == 1 ? nodes.info(leaf).parent : -1;
@@ -3723,7 +3730,7 @@ std::uint32_t erase_at(Core<T, Tr, W> &core, int leaf, std::size_t index, int *c
   if (mend >= 0) {
     id = core.leaves.ids(nodes.node(leaf))[index];
     std::vector<Tagged<T>> shapes = copy_subtree(core, mend, leaf, index);
-    const int fresh = build_beside(core, mend, shapes, Cut::in_order);
+    const int fresh = build_beside(core, mend, shapes, how);
     // Nothing below throws.
     link_in(core, mend, fresh);
     if (undo) {
@@ -3780,7 +3787,8 @@ template <class T, class Tr, int W> void commit_erase(Core<T, Tr, W> &core, cons
 }
 
 /// erase_at() and its rebalance, then the id is given back. Strong.
-template <class T, class Tr, int W> void erase_shape(Core<T, Tr, W> &core, int leaf, std::size_t index) {
+template <class T, class Tr, int W>
+void erase_shape(Core<T, Tr, W> &core, int leaf, std::size_t index, Cut how = Cut::in_order) {
   core.leaves.reserve_id_back();
   std::uint32_t id;
   if (core.size == 1) {
@@ -3788,8 +3796,8 @@ template <class T, class Tr, int W> void erase_shape(Core<T, Tr, W> &core, int l
     core.clear_nodes();
   } else {
     int changed;
-    id = erase_at(core, leaf, index, &changed);
-    rebalance(core, find_scapegoat(core, changed, -1, true), Cut::in_order);
+    id = erase_at(core, leaf, index, &changed, static_cast<EraseUndo<T> *>(nullptr), how);
+    rebalance(core, find_scapegoat(core, changed, -1, true), how);
   }
   core.leaves.free_id(id, core.size == 0);
 }
@@ -3832,7 +3840,7 @@ template <class T, class Tr, int W> void update_shape(Core<T, Tr, W> &core, std:
   }
   EraseUndo<T> undo;
   int changed;
-  erase_at(core, at.leaf, at.index, &changed, &undo);
+  erase_at(core, at.leaf, at.index, &changed, &undo, Cut::by_rule);
   // The erase's rebalance comes before the insert, as erase() then insert()
   // would do it; the subtree it replaces is kept aside until the insert
   // has succeeded. If the rebuild throws, it is given up (as rebalance()).
@@ -3841,7 +3849,7 @@ template <class T, class Tr, int W> void update_shape(Core<T, Tr, W> &core, std:
   if (a >= 0) {
     try {
       std::vector<Tagged<T>> shapes = copy_subtree(core, a);
-      a_fresh = build_beside(core, a, shapes, Cut::in_order);
+      a_fresh = build_beside(core, a, shapes, Cut::by_rule);
       const bool box_changed = nodes.box(a_fresh) != nodes.box(a);
       link_in(core, a, a_fresh);
       if (box_changed && nodes.info(a_fresh).parent >= 0) core.refit_up(nodes.info(a_fresh).parent);
@@ -5880,11 +5888,12 @@ public:
   }
 
   /// Removes the shape named by `h` (valid); `h` becomes invalid, as do
-  /// iterators. Strong (a rebuild for balance after it: as for insert()).
+  /// iterators. Strong (a rebuild for balance after it: by the build rule,
+  /// as for insert(); erase(iterator) instead keeps the iteration order).
   void erase(handle h) {
     BVH_ASSERT(contains(h), "erase() with a handle that names no stored shape");
     const auto at = core_.locate(h.id);
-    detail::erase_shape(core_, at.leaf, at.index);
+    detail::erase_shape(core_, at.leaf, at.index, detail::Cut::by_rule);
   }
   /// Removes the shape at `pos` and returns the iterator to the shape that
   /// followed it (end() after the last). Every other iterator is
@@ -5912,7 +5921,8 @@ public:
     std::size_t removed = 0;
     int leaf;
     std::size_t index;
-    for (; detail::find_equal(core_, value, leaf, index); ++removed) detail::erase_shape(core_, leaf, index);
+    for (; detail::find_equal(core_, value, leaf, index); ++removed)
+      detail::erase_shape(core_, leaf, index, detail::Cut::by_rule);
     return removed;
   }
 

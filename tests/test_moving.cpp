@@ -308,35 +308,43 @@ TEST(updating_the_only_shape_and_an_empty_tree) {
 TEST(moves_do_not_degrade_the_tree) {
   // Many small steps and some teleports: the tree's SAH cost stays near a
   // bulk build's of the same disks (the W4 benchmark reports the figure).
-  const unsigned seed = base_seed() + 3600;
-  note("BVH_SEED=" + std::to_string(seed));
-  for (double margin : {0.0, 0.5}) {
-    Maker make(seed);
-    std::vector<Disk> disks;
-    for (int i = 0; i < scaled(4000); ++i)
-      disks.push_back(Disk(Point(make.coord(0, 400), make.coord(0, 400)), make.coord(0.5, 1.5)));
-    Tree tree(4, 0);
-    tree.set_margin(margin);
-    std::vector<Handle> handles;
-    for (const Disk &d : disks) handles.push_back(tree.insert(d));
-    for (int frame = 0; frame < 30; ++frame) {
-      for (std::size_t i = 0; i < disks.size(); ++i) {
-        const double r = disks[i].getRadius();
-        Disk to = moved(disks[i], make.coord(-r, r), make.coord(-r, r));
-        if (frame % 10 == 9 && i % 100 == 0) to = Disk(Point(make.coord(0, 400), make.coord(0, 400)), r);
-        disks[i] = to;
-        tree.update(handles[i], to);
+  // At full scale also two fixed seeds, 3680 and 3908 (BVH_SEED=80 and
+  // 308), where the erase inside update() used to rebuild a subtree near
+  // the root in leaf order, equal cuts across lopsided children: 2.13x
+  // and 2.56x a bulk build's cost. (Over BVH_SEED=1..300 the worst was
+  // 2.56x then, 1.27x with update()'s rebuilds by the build rule.)
+  std::vector<unsigned> seeds{base_seed() + 3600};
+  if (scale() >= 1) seeds.insert(seeds.end(), {3680u, 3908u});
+  for (const unsigned seed : seeds) {
+    for (double margin : {0.0, 0.5}) {
+      Maker make(seed);
+      std::vector<Disk> disks;
+      for (int i = 0; i < scaled(4000); ++i)
+        disks.push_back(Disk(Point(make.coord(0, 400), make.coord(0, 400)), make.coord(0.5, 1.5)));
+      Tree tree(4, 0);
+      tree.set_margin(margin);
+      std::vector<Handle> handles;
+      for (const Disk &d : disks) handles.push_back(tree.insert(d));
+      for (int frame = 0; frame < 30; ++frame) {
+        for (std::size_t i = 0; i < disks.size(); ++i) {
+          const double r = disks[i].getRadius();
+          Disk to = moved(disks[i], make.coord(-r, r), make.coord(-r, r));
+          if (frame % 10 == 9 && i % 100 == 0) to = Disk(Point(make.coord(0, 400), make.coord(0, 400)), r);
+          disks[i] = to;
+          tree.update(handles[i], to);
+        }
       }
+      std::string why;
+      tree.validate(&why);
+      CHECK_EQ(why, std::string());
+      Tree bulk(4, 0);
+      bulk.set_margin(margin);
+      bulk.construct(disks);
+      const double drift = tree.sah_cost() / bulk.sah_cost();
+      note("seed " + std::to_string(seed) + " (BVH_SEED=" + std::to_string(seed - 3600) + ") margin " +
+           std::to_string(margin) + " drift " + std::to_string(drift));
+      CHECK(drift < 1.4);
     }
-    std::string why;
-    tree.validate(&why);
-    CHECK_EQ(why, std::string());
-    Tree bulk(4, 0);
-    bulk.set_margin(margin);
-    bulk.construct(disks);
-    const double drift = tree.sah_cost() / bulk.sah_cost();
-    note("BVH_SEED=" + std::to_string(seed) + " margin " + std::to_string(margin) + " drift " + std::to_string(drift));
-    CHECK(drift < 1.4);
   }
 }
 
