@@ -3719,8 +3719,8 @@ template <class T, class Tr, int W> void uncount_up(Core<T, Tr, W> &core, int n)
 /// slot or subtree is kept aside: undo_erase() puts it back,
 /// commit_erase() gives it back. The tree must hold more than one shape.
 template <class T, class Tr, int W>
-std::uint32_t erase_at(Core<T, Tr, W> &core, int leaf, std::size_t index, int *changed, EraseUndo<T> *undo = nullptr,
-                       Cut how = Cut::in_order) {
+std::uint32_t erase_at(Core<T, Tr, W> &core, int leaf, std::size_t index, Cut how, int *changed,
+                       EraseUndo<T> *undo = nullptr) {
   NodeStore<W> &nodes = core.nodes;
   BVH_INVARIANT(core.size > 1, "erase_at() of the last shape");
   int mend = nodes.node(leaf).leaf().count == 1 ? nodes.info(leaf).parent : -1;
@@ -3788,7 +3788,7 @@ template <class T, class Tr, int W> void commit_erase(Core<T, Tr, W> &core, cons
 
 /// erase_at() and its rebalance, then the id is given back. Strong.
 template <class T, class Tr, int W>
-void erase_shape(Core<T, Tr, W> &core, int leaf, std::size_t index, Cut how = Cut::in_order) {
+void erase_shape(Core<T, Tr, W> &core, int leaf, std::size_t index, Cut how) {
   core.leaves.reserve_id_back();
   std::uint32_t id;
   if (core.size == 1) {
@@ -3796,7 +3796,7 @@ void erase_shape(Core<T, Tr, W> &core, int leaf, std::size_t index, Cut how = Cu
     core.clear_nodes();
   } else {
     int changed;
-    id = erase_at(core, leaf, index, &changed, static_cast<EraseUndo<T> *>(nullptr), how);
+    id = erase_at(core, leaf, index, how, &changed);
     rebalance(core, find_scapegoat(core, changed, -1, true), how);
   }
   core.leaves.free_id(id, core.size == 0);
@@ -3840,7 +3840,7 @@ template <class T, class Tr, int W> void update_shape(Core<T, Tr, W> &core, std:
   }
   EraseUndo<T> undo;
   int changed;
-  erase_at(core, at.leaf, at.index, &changed, &undo, Cut::by_rule);
+  erase_at(core, at.leaf, at.index, Cut::by_rule, &changed, &undo);
   // The erase's rebalance comes before the insert, as erase() then insert()
   // would do it; the subtree it replaces is kept aside until the insert
   // has succeeded. If the rebuild throws, it is given up (as rebalance()).
@@ -5200,7 +5200,7 @@ template <class T, class Tr, int W>
       if (lane.items[k] < first) continue;
       const typename LeafStore<T>::Loc at = core.locate(ids[lane.items[k] - next]);
       try {
-        erase_shape(core, at.leaf, at.index);
+        erase_shape(core, at.leaf, at.index, Cut::in_order);
       } catch (...) {
       }
     }
@@ -5908,7 +5908,7 @@ public:
                    core_.nodes.node(pos.leaf_).leaf().has_slot() && pos.index_ < pos.shapes().size(),
                "erase() with an invalidated iterator");
     const std::size_t rank = rank_of(pos.leaf_, pos.index_);
-    detail::erase_shape(core_, pos.leaf_, pos.index_);
+    detail::erase_shape(core_, pos.leaf_, pos.index_, detail::Cut::in_order);
     return iterator_at(rank);
   }
   /// Removes every stored shape equal to `value` and returns how many there
