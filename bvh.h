@@ -164,6 +164,15 @@ namespace detail {
 /// call does not find shape_traits's member of the same name.)
 template <class A, class B> bool intersect_adl(const A &a, const B &b) { return intersect(a, b); }
 
+/// True for a shape type that is the closed disk inscribed in its box and
+/// whose intersect() is exact: this project's Disk (intersect.h defines
+/// BVH_EXACT_DISKS beside its predicate). The course's own Disk is not: its
+/// intersect() has a tolerance, which only it can apply.
+template <class T> constexpr bool kExactDisk = false;
+#if defined(BVH_EXACT_DISKS)
+template <> constexpr bool kExactDisk<Disk> = true;
+#endif
+
 } // namespace detail
 
 // ---- How the tree reads your types: the customization points ------------
@@ -208,7 +217,22 @@ template <class T> struct shape_traits {
   static decltype(auto) center(const T &s) { return s.getCenter(); }
   /// True when a and b share a point (touching counts).
   static bool intersect(const T &a, const T &b) { return detail::intersect_adl(a, b); }
+  /// A promise that each shape is the closed disk inscribed in its box
+  /// (up to the rounding of the box's sides) and that intersect() is
+  /// exactly "the closed disks share a point". Collision searches of trees
+  /// with leaf summaries (widths 4 to 8) then decide most shapes from the
+  /// summary alone, without reading them; the answers are the same. True
+  /// for this project's Disk; an adaptor of your own may declare it too.
+  static constexpr bool inscribed_disks = detail::kExactDisk<T>;
 };
+
+namespace detail {
+/// Tr::inscribed_disks, or false when Tr has no such member.
+template <class Tr, class = void> struct InscribedDisks : std::false_type {};
+template <class Tr>
+struct InscribedDisks<Tr, std::void_t<decltype(Tr::inscribed_disks)>>
+    : std::integral_constant<bool, bool(Tr::inscribed_disks)> {};
+} // namespace detail
 
 namespace detail {
 
@@ -3915,6 +3939,121 @@ template <int W, class F> BVH_ALWAYS_INLINE bool each_candidate(const Node<W> &n
   return true;
 }
 
+/// A collision probe read as a disk (InscribedDisks): the disk inscribed
+/// in its box, with `slack` covering the rounding of the box's sides.
+/// Unusable (no decision from codes) unless the box is square up to that
+/// rounding and its sides are finite and below 1e100.
+struct DiskProbe {
+  double x = 0, y = 0, r_lo = 0, r_hi = 0, slack = 0;
+  bool usable = false;
+  static DiskProbe of(const Box &b) {
+    DiskProbe p;
+    const double m = std::max(std::max(std::fabs(b.x0), std::fabs(b.y0)), std::max(std::fabs(b.x1), std::fabs(b.y1)));
+    if (!(m < 1e100) || !(b.x0 <= b.x1) || !(b.y0 <= b.y1)) return p; // (NaN fails these too)
+    p.slack = 0x1p-48 * m; // (a few units in the last place of the largest side)
+    const double wx = 0.5 * (b.x1 - b.x0), wy = 0.5 * (b.y1 - b.y0);
+    p.x = 0.5 * (b.x0 + b.x1);
+    p.y = 0.5 * (b.y0 + b.y1);
+    p.r_lo = std::min(wx, wy) - p.slack;
+    p.r_hi = std::max(wx, wy) + p.slack;
+    p.usable = p.r_lo >= 0 && p.r_hi - p.r_lo <= 1e-6 * (p.r_hi + m);
+    return p;
+  }
+};
+
+/// A summarized leaf's frame, inverted: code k of a side that was not
+/// clamped (1 <= k <= 254) puts the side in [o + k q - d, o + (k + 1) q +
+/// d], q = 1 / scale. The codes are computed in float (codes_of): float(v)
+/// and the subtraction and product each round by at most 2^-24 relative,
+/// which moves the side by less than 2^-21 (|o| + 512 q); d is four times
+/// that, and also covers the rounding of a disk's box, 2^-52 of its sides.
+struct CodeFrame {
+  double ox = 0, oy = 0, qx = 0, qy = 0, dx = 0, dy = 0;
+  bool usable = false;
+  template <class F> static CodeFrame of(const F &f) {
+    CodeFrame c;
+    c.ox = f.ox;
+    c.oy = f.oy;
+    c.qx = 1.0 / double(f.sx);
+    c.qy = 1.0 / double(f.sy);
+    c.usable = c.qx >= 1e-100 && c.qx <= 1e100 && c.qy >= 1e-100 && c.qy <= 1e100 && std::fabs(c.ox) < 1e100 &&
+               std::fabs(c.oy) < 1e100; // (a scale of 0 gives q = inf; NaN fails)
+    c.dx = 0x1p-19 * (std::fabs(c.ox) + 512 * c.qx);
+    c.dy = 0x1p-19 * (std::fabs(c.oy) + 512 * c.qy);
+    return c;
+  }
+};
+
+/// Shape i of a summarized leaf, a disk inscribed in its box (its code
+/// box read through `f`), against probe `p`: +1 when they surely meet, -1
+/// when they surely do not, 0 when only the exact test can tell (a side
+/// clamped, or the probe within a few quanta of tangency). Sure means for
+/// every disk whose box the codes allow: the centre lies in a rectangle
+/// and the radius in [r_lo, r_hi], and the closed disks meet iff the
+/// centres are at most the radii's sum apart (intersect.h's disks_meet,
+/// which this needs both radii >= 0 for). The distances are computed in
+/// double, whose relative error (about 1e-15) the factors 1 -+ 1e-9 cover.
+template <int W> BVH_ALWAYS_INLINE int disk_decision(const Node<W> &node, int i, const CodeFrame &f, const DiskProbe &p) {
+  const unsigned a0 = node.row(0)[i], b0 = node.row(1)[i], a1 = node.row(2)[i], b1 = node.row(3)[i];
+  if (a0 - 1u > 253u || b0 - 1u > 253u || a1 - 1u > 253u || b1 - 1u > 253u) return 0; // (0 or 255: maybe clamped)
+  const double x0l = f.ox + a0 * f.qx - f.dx, x0h = f.ox + (a0 + 1) * f.qx + f.dx;
+  const double x1l = f.ox + a1 * f.qx - f.dx, x1h = f.ox + (a1 + 1) * f.qx + f.dx;
+  const double y0l = f.oy + b0 * f.qy - f.dy, y0h = f.oy + (b0 + 1) * f.qy + f.dy;
+  const double y1l = f.oy + b1 * f.qy - f.dy, y1h = f.oy + (b1 + 1) * f.qy + f.dy;
+  const double r_lo = 0.5 * std::max(x1l - x0h, y1l - y0h), r_hi = 0.5 * std::min(x1h - x0l, y1h - y0l);
+  if (!(r_lo >= 0)) return 0;
+  // The centre's rectangle, widened by the probe's own rounding.
+  const double cxl = 0.5 * (x0l + x1l) - p.slack, cxh = 0.5 * (x0h + x1h) + p.slack;
+  const double cyl = 0.5 * (y0l + y1l) - p.slack, cyh = 0.5 * (y0h + y1h) + p.slack;
+  const double fx = std::max(p.x - cxl, cxh - p.x), fy = std::max(p.y - cyl, cyh - p.y); // farthest
+  const double hit = p.r_lo + r_lo;
+  if (fx * fx + fy * fy < hit * hit * (1 - 1e-9)) return 1;
+  const double ex = std::max(std::max(cxl - p.x, p.x - cxh), 0.0), ey = std::max(std::max(cyl - p.y, p.y - cyh), 0.0);
+  const double miss = p.r_hi + r_hi;
+  if (ex * ex + ey * ey > miss * miss * (1 + 1e-9)) return -1;
+  return 0;
+}
+
+/// For a summarized leaf of inscribed disks (n shapes, all coded): true
+/// when one whose code box meets `box` surely meets probe `p`; otherwise
+/// `unsure` gets those whose code box meets `box` that the codes cannot
+/// decide (all of them when the frame or the probe is unusable).
+template <int W>
+BVH_ALWAYS_INLINE bool disk_codes_hit(const Node<W> &node, int n, const Box &box, const DiskProbe &p, std::uint32_t &unsure) {
+  const std::uint32_t bits = node.meets(box, n);
+  unsure = bits;
+  if (bits == 0 || !p.usable) return false;
+  const CodeFrame f = CodeFrame::of(node.frame());
+  if (!f.usable) return false;
+  for (std::uint32_t b = bits; b != 0; b &= b - 1) {
+    const int i = lowest_bit(b);
+    const int d = disk_decision(node, i, f, p);
+    if (d > 0) return true;
+    if (d < 0) unsure &= ~(std::uint32_t(1) << i);
+  }
+  return false;
+}
+
+/// True when collision searches may decide a summarized leaf's disks from
+/// their codes (widths with summaries, traits that promise inscribed
+/// disks).
+template <class Tr, int W> constexpr bool kDisksFromCodes = Node<W>::kCoded > 0 && InscribedDisks<Tr>::value;
+
+/// The stored shapes' bytes from which they do: a decision costs more
+/// than reading a disk the caches hold, and saves a miss only when the
+/// disks are many more than a core's own caches keep. Tests define it
+/// lower, as BVH_DISJOINT_INTERLEAVE_MIN.
+#ifndef BVH_DISK_CODES_MIN_BYTES
+#define BVH_DISK_CODES_MIN_BYTES (std::size_t(4) << 20)
+#endif
+/// The probe as collision searches of `core` read it: a DiskProbe, usable
+/// when core's disks are decided from codes.
+template <class T, class Tr, int W> BVH_ALWAYS_INLINE DiskProbe disk_probe(const Core<T, Tr, W> &core, const Box &box) {
+  if constexpr (kDisksFromCodes<Tr, W>)
+    if (core.size >= std::size_t(BVH_DISK_CODES_MIN_BYTES) / sizeof(T)) return DiskProbe::of(box);
+  return DiskProbe{};
+}
+
 /// collides()'s visit of inner node `node`: the children to enter, as
 /// walk()'s visit result. Children holding the probe's centre go first
 /// where leaves have no summary: there a leaf visit reads every shape, and
@@ -3938,10 +4077,20 @@ template <class T, class Tr, int W> bool collides(const Core<T, Tr, W> &core, co
   const Box box = box_of(core.traits, shape);
   if (!core.nodes.box(core.root).overlaps(box)) return false;
   const Probe probe = Probe::around(box);
+  const DiskProbe disk = disk_probe(core, box);
   return !walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
     const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
       const Span<const T> v = core.leaves.shapes(node);
+      if constexpr (kDisksFromCodes<Tr, W>) {
+        if (node.coded() == int(v.size())) {
+          std::uint32_t unsure;
+          if (disk_codes_hit(node, int(v.size()), box, disk, unsure)) return kStop;
+          for (; unsure != 0; unsure &= unsure - 1)
+            if (core.traits.intersect(v[lowest_bit(unsure)], shape)) return kStop;
+          return 0;
+        }
+      }
       const bool missed =
           each_candidate(node, v.size(), box, [&](std::size_t i) { return !core.traits.intersect(v[i], shape); });
       return missed ? 0 : kStop;
@@ -3969,6 +4118,7 @@ void collides_each(const Core<T, Tr, W> &core, const T *shapes, std::size_t coun
     unsigned char *hit = nullptr;
     Box box;
     Probe probe{0, 0, 0, 0, 0, 0};
+    DiskProbe disk;              // (kDisksFromCodes)
     IndexStack stack;
     int node = -1;               // the node the next step visits,
     const T *leaf = nullptr;     // or, while `pending` is not 0, the leaf's shapes
@@ -3994,6 +4144,7 @@ void collides_each(const Core<T, Tr, W> &core, const T *shapes, std::size_t coun
       s.hit = &hit[j];
       s.box = box;
       s.probe = Probe::inline_around(box);
+      if constexpr (kDisksFromCodes<Tr, W>) s.disk = disk_probe(core, box);
       enter(s, core.root);
       return true;
     }
@@ -4019,8 +4170,12 @@ void collides_each(const Core<T, Tr, W> &core, const T *shapes, std::size_t coun
         const Span<const T> v = core.leaves.shapes(node);
         if (v.size() <= kDeferred) {
           std::uint32_t bits = v.size() == 32 ? ~std::uint32_t(0) : (std::uint32_t(1) << v.size()) - 1;
-          if constexpr (Node<W>::kCoded > 0)
+          if constexpr (kDisksFromCodes<Tr, W>) {
+            if (node.coded() == int(v.size()) && disk_codes_hit(node, int(v.size()), s.box, s.disk, bits))
+              return *s.hit = 1, true;
+          } else if constexpr (Node<W>::kCoded > 0) {
             if (node.coded() == int(v.size())) bits = node.meets(s.box, int(v.size()));
+          }
           if (bits != 0) {
             for (std::uint32_t b = bits; b != 0; b &= b - 1) prefetch_lines(v.begin() + lowest_bit(b), sizeof(T));
             s.leaf = v.begin();

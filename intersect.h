@@ -382,7 +382,10 @@ template <int N, int M> bool polygons_meet(const Polygon<N> &P, const Polygon<M>
 } // namespace detail
 } // namespace exact
 
-/// True when the closed disks meet (tangent disks do).
+/// True when the closed disks meet (tangent disks do). (Exact, which
+/// bvh.h's collision searches may rely on: see shape_traits's
+/// inscribed_disks.)
+#define BVH_EXACT_DISKS 1
 inline bool intersect(const Disk &a, const Disk &b) {
   return exact::detail::disks_meet(a.getCenter(), b.getCenter(), a.getRadius(), b.getRadius());
 }

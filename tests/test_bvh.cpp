@@ -6,6 +6,14 @@
 // Seeds: BVH_SEED (default 12345) and BVH_TEST_SCALE (default 1; larger
 // runs more random cases, 0.1 is for valgrind). Every randomized case prints
 // its seed and case number with any failure.
+// Collision searches decide disks from their leaves' codes at every size
+// here (bvh.h's default starts at 4 MB of disks), so that the model tests
+// check those decisions (test_exceptions, test_lazy_handles and test_names
+// keep the default).
+#ifndef BVH_DISK_CODES_MIN_BYTES
+#define BVH_DISK_CODES_MIN_BYTES 0
+#endif
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -656,6 +664,170 @@ template <int W> void summaries_hold_extreme_disks(unsigned seed, int split) {
 TEST(leaf_summaries_hold_extreme_disks) {
   summaries_hold_extreme_disks<8>(base_seed() + 12, 32);
   summaries_hold_extreme_disks<7>(base_seed() + 13, 24);
+}
+
+// Collision searches decide a summarized leaf's disks from their codes
+// (bvh.h, disk_decision) when the traits promise inscribed disks. Each
+// decision must be intersect()'s answer: leaves of up to 32 disks at
+// offsets from 0 to 1e9 and spreads from 1e-4 to 1e5, their frames as
+// make_summary() makes them and then perturbed (a frame that fits the
+// disks badly, or not at all, must still give right decisions), probes at
+// distances from tangency of 0 to 10% of the radii's sum, in both
+// directions, exactly tangent ones on an axis among them. The share of
+// decided pairs must be large, or the test would pass with no decisions.
+TEST(disks_decided_from_codes_agree_with_intersect) {
+  using Node8 = bvh::detail::Node<8>;
+  using bvh::detail::Box;
+  static_assert(bvh::detail::InscribedDisks<bvh::shape_traits<Disk>>::value, "this project's Disk promises it");
+  static_assert(!bvh::detail::InscribedDisks<bvh::shape_traits<Triangle>>::value, "a triangle does not");
+  const unsigned seed = base_seed() + 14;
+  note("seed " + std::to_string(seed));
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  const double offsets[] = {0, 1, -37.5, 1e3, -2.5e5, 1e7, 1e9};
+  const double rels[] = {0, 1e-15, 1e-12, 1e-9, 1e-6, 1e-4, 1e-3, 1e-2, 0.05, 0.1};
+  long decided = 0, pairs = 0, wrong = 0, hit_wrong = 0, candidates = 0, candidates_decided = 0;
+  std::string first_wrong;
+  for (int round = 0; round < scaled(3000); ++round) {
+    const double offset = offsets[rng() % 7] * (rng() % 2 ? 1 : -1);
+    const double spread = std::ldexp(1.0, int(rng() % 30) - 13); // 1e-4 .. 1e5
+    const int n = 1 + int(rng() % 32);
+    // (float codes place sides to about 2^-21 of the offset: far from the
+    // origin a small leaf's codes decide nothing, rightly; the shares below
+    // are counted where they can decide)
+    bool ordinary = std::fabs(offset) <= 1e3 * spread;
+    std::vector<Disk> stored;
+    Box all;
+    for (int i = 0; i < n; ++i) {
+      const Disk d(Point(offset + spread * unit(rng), offset + spread * unit(rng)), spread * (0.002 + 0.1 * unit(rng)),
+                   Color());
+      stored.push_back(d);
+      all.extend(Box::from(d.getBox()));
+    }
+    // The frame as make_summary() computes it, then maybe perturbed.
+    Node8 node;
+    Node8::Frame f;
+    const double sx = all.x1 - all.x0, sy = all.y1 - all.y0;
+    f.ox = float(all.x0 - sx / 8);
+    f.oy = float(all.y0 - sy / 8);
+    const double kx = 255 / (double(all.x1 + sx / 8) - f.ox), ky = 255 / (double(all.y1 + sy / 8) - f.oy);
+    f.sx = kx > 0 && kx < 1e30 ? float(kx) * (1 - 1e-6f) : 0; // (a scale is never negative)
+    f.sy = ky > 0 && ky < 1e30 ? float(ky) * (1 - 1e-6f) : 0;
+    const bool perturbed = rng() % 4 == 0;
+    if (perturbed) {
+      f.ox += float(sx * (unit(rng) - 0.5));
+      f.sx *= float(0.25 + 4 * unit(rng));
+      f.sy *= float(0.25 + 4 * unit(rng));
+    }
+    ordinary = ordinary && !perturbed;
+    node.set_frame(f);
+    for (int i = 0; i < n; ++i) node.set_codes(i, Node8::codes_of(Box::from(stored[std::size_t(i)].getBox()), f));
+    node.set_coded(n);
+    const bvh::detail::CodeFrame frame = bvh::detail::CodeFrame::of(node.frame());
+    for (int k = 0; k < 24; ++k) {
+      const Disk &d = stored[rng() % stored.size()];
+      const double r = d.getRadius() * (rng() % 8 == 0 ? 0.0 : 0.05 + 3 * unit(rng));
+      const double rel = rels[rng() % 10] * (rng() % 2 ? 1 : -1) * (rng() % 3 ? 1 : unit(rng));
+      const double reach = (d.getRadius() + r) * (1 + rel);
+      Point c;
+      if (rng() % 4 == 0) { // on an axis: exactly tangent when rel is 0 and the sums are exact
+        c = Point(d.getCenter().x + (rng() % 2 ? reach : -reach), d.getCenter().y);
+      } else {
+        const double a = 6.283185307179586 * unit(rng);
+        c = Point(d.getCenter().x + reach * std::cos(a), d.getCenter().y + reach * std::sin(a));
+      }
+      const Disk probe(c, r, Color());
+      const Box probe_box = Box::from(probe.getBox());
+      const bvh::detail::DiskProbe p = bvh::detail::DiskProbe::of(probe_box);
+      bool any = false;
+      for (int i = 0; i < n; ++i) {
+        const bool meets = intersect(stored[std::size_t(i)], probe);
+        any = any || (meets && Box::from(stored[std::size_t(i)].getBox()).overlaps(probe_box));
+        if (!p.usable || !frame.usable) continue;
+        const int decision = bvh::detail::disk_decision(node, i, frame, p);
+        if ((decision > 0 && !meets) || (decision < 0 && meets)) {
+          if (wrong++ == 0)
+            first_wrong = "disk " + std::to_string(i) + " of " + std::to_string(n) + " in round " +
+                          std::to_string(round) + ", relative gap " + std::to_string(rel) + ", decision " +
+                          std::to_string(decision);
+        }
+        if (!ordinary) continue;
+        ++pairs;
+        decided += decision != 0 ? 1 : 0;
+        if (node.meets(probe_box, n) >> i & 1u) {
+          ++candidates;
+          candidates_decided += decision != 0 ? 1 : 0;
+        }
+      }
+      // disk_codes_hit: true only when some shape meets; otherwise every
+      // shape that meets is among the unsure ones
+      std::uint32_t unsure = 0;
+      const bool sure = bvh::detail::disk_codes_hit(node, n, probe_box, p, unsure);
+      bool lost = sure && !any;
+      for (int i = 0; i < n && !sure; ++i)
+        lost = lost || (intersect(stored[std::size_t(i)], probe) &&
+                        Box::from(stored[std::size_t(i)].getBox()).overlaps(probe_box) && !(unsure >> i & 1u));
+      if (lost && hit_wrong++ == 0) first_wrong += " (disk_codes_hit: round " + std::to_string(round) + ")";
+    }
+  }
+  note("pairs " + std::to_string(pairs) + " decided " + std::to_string(decided) + "; code boxes meet " +
+       std::to_string(candidates) + ", decided " + std::to_string(candidates_decided) + "; first wrong: " + first_wrong);
+  CHECK_EQ(wrong, 0L);
+  CHECK_EQ(hit_wrong, 0L);
+  CHECK(decided > pairs / 2);
+  CHECK(candidates_decided > candidates / 3);
+}
+
+// The same through whole trees: collision() and collisions() at widths 4
+// and 8 against intersect() over every disk, with probes placed near
+// tangency of a stored disk, and against a tree whose traits make no
+// promise (every candidate read and tested).
+struct NoPromise {
+  static decltype(auto) box(const Disk &d) { return d.getBox(); }
+  static decltype(auto) center(const Disk &d) { return d.getCenter(); }
+  static bool intersect(const Disk &a, const Disk &b) { return ::intersect(a, b); }
+};
+template <int W> void collisions_near_tangency(unsigned seed) {
+  note("seed " + std::to_string(seed) + " width " + std::to_string(W));
+  static_assert(!bvh::detail::InscribedDisks<NoPromise>::value, "no member: no promise");
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  BVH<Disk, bvh::shape_traits<Disk>, W> tree(W == 8 ? 32 : 16);
+  BVH<Disk, NoPromise, W> plain(W == 8 ? 32 : 16);
+  std::vector<Disk> kept;
+  const double offset = rng() % 2 ? 0 : 4096;
+  for (int i = 0; i < scaled(4000); ++i) {
+    const Disk d(Point(offset + 60 * unit(rng), offset + 60 * unit(rng)), 0.2 + 0.4 * unit(rng), Color());
+    const bool hit = tree.collision(d);
+    CHECK_EQ(hit, plain.collision(d));
+    if (!hit) {
+      tree.insert(d);
+      plain.insert(d);
+      kept.push_back(d);
+    }
+  }
+  CHECK(tree.validate());
+  std::vector<Disk> probes;
+  const double rels[] = {0, 1e-12, 1e-9, 1e-6, 1e-3, 0.1};
+  for (int k = 0; k < scaled(3000); ++k) {
+    const Disk &d = kept[rng() % kept.size()];
+    const double r = 0.2 + 0.4 * unit(rng), rel = rels[rng() % 6] * (rng() % 2 ? 1 : -1);
+    const double a = 6.283185307179586 * unit(rng), reach = (d.getRadius() + r) * (1 + rel);
+    probes.push_back(Disk(Point(d.getCenter().x + reach * std::cos(a), d.getCenter().y + reach * std::sin(a)), r, Color()));
+  }
+  const std::vector<bool> together = tree.collisions(probes);
+  int wrong = 0;
+  for (std::size_t k = 0; k < probes.size(); ++k) {
+    bool expected = false;
+    for (const Disk &d : kept) expected = expected || intersect(d, probes[k]);
+    const bool one = tree.collision(probes[k]);
+    if (one != expected || together[k] != expected || plain.collision(probes[k]) != expected) ++wrong;
+  }
+  CHECK_EQ(wrong, 0);
+}
+TEST(collisions_near_tangency_equal_brute_force) {
+  collisions_near_tangency<8>(base_seed() + 15);
+  collisions_near_tangency<4>(base_seed() + 16);
 }
 
 // A tree of one shape whose box has a NaN side: its root's box must be

@@ -48,6 +48,7 @@ inline bool on = true;
 // Interleaved searches, and one thread's batches, from trees of 64 shapes
 // (bvh.h's default: 32,768).
 #define BVH_DISJOINT_INTERLEAVE_MIN 64
+#define BVH_DISK_CODES_MIN_BYTES 0 // (disks decided from codes at every size)
 
 #include "bvh.h"
 #include "check.h"

@@ -17,6 +17,12 @@
 // test_lazy_handles, test_names) or that replace operator new
 // (test_exceptions) stay programs of their own.
 
+// Collision searches decide disks from their leaves' codes at every size
+// here (bvh.h's default starts at 4 MB of disks), so that the model tests
+// check those decisions (test_exceptions, test_lazy_handles and test_names
+// keep the default).
+#define BVH_DISK_CODES_MIN_BYTES 0
+
 // Every header a suite includes, here first, at global scope: inside the
 // namespaces below each #include is then a no-op (include guards).
 #include <unistd.h>
