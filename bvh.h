@@ -4069,6 +4069,20 @@ template <int W> BVH_ALWAYS_INLINE unsigned collision_children(const Node<W> &no
   }
 }
 
+/// collides()'s visit of a summarized leaf of n disks (kDisksFromCodes,
+/// the probe usable): true when one meets `shape`. (Not inlined: it runs on
+/// large trees only, and inlined it made the search of small trees, which
+/// never takes it, slower.)
+template <class T, class Tr, int W>
+BVH_NOINLINE bool disk_leaf_collides(const Tr &traits, const Node<W> &node, const T *v, int n, const Box &box,
+                                     const DiskProbe &disk, const T &shape) {
+  std::uint32_t unsure;
+  if (disk_codes_hit(node, n, box, disk, unsure)) return true;
+  for (; unsure != 0; unsure &= unsure - 1)
+    if (traits.intersect(v[lowest_bit(unsure)], shape)) return true;
+  return false;
+}
+
 /// True iff some stored shape intersects `shape` (touching counts).
 /// Subtrees whose box misses the shape's box are never visited; the final
 /// test is T's intersect().
@@ -4082,15 +4096,9 @@ template <class T, class Tr, int W> bool collides(const Core<T, Tr, W> &core, co
     const Node<W> &node = core.nodes.node(n);
     if (node.is_leaf()) {
       const Span<const T> v = core.leaves.shapes(node);
-      if constexpr (kDisksFromCodes<Tr, W>) {
-        if (node.coded() == int(v.size())) {
-          std::uint32_t unsure;
-          if (disk_codes_hit(node, int(v.size()), box, disk, unsure)) return kStop;
-          for (; unsure != 0; unsure &= unsure - 1)
-            if (core.traits.intersect(v[lowest_bit(unsure)], shape)) return kStop;
-          return 0;
-        }
-      }
+      if constexpr (kDisksFromCodes<Tr, W>)
+        if (disk.usable && node.coded() == int(v.size()))
+          return disk_leaf_collides(core.traits, node, v.begin(), int(v.size()), box, disk, shape) ? kStop : 0;
       const bool missed =
           each_candidate(node, v.size(), box, [&](std::size_t i) { return !core.traits.intersect(v[i], shape); });
       return missed ? 0 : kStop;
@@ -4170,11 +4178,11 @@ void collides_each(const Core<T, Tr, W> &core, const T *shapes, std::size_t coun
         const Span<const T> v = core.leaves.shapes(node);
         if (v.size() <= kDeferred) {
           std::uint32_t bits = v.size() == 32 ? ~std::uint32_t(0) : (std::uint32_t(1) << v.size()) - 1;
-          if constexpr (kDisksFromCodes<Tr, W>) {
-            if (node.coded() == int(v.size()) && disk_codes_hit(node, int(v.size()), s.box, s.disk, bits))
-              return *s.hit = 1, true;
-          } else if constexpr (Node<W>::kCoded > 0) {
-            if (node.coded() == int(v.size())) bits = node.meets(s.box, int(v.size()));
+          if constexpr (Node<W>::kCoded > 0) {
+            if (node.coded() == int(v.size())) {
+              if (!kDisksFromCodes<Tr, W> || !s.disk.usable) bits = node.meets(s.box, int(v.size()));
+              else if (disk_codes_hit(node, int(v.size()), s.box, s.disk, bits)) return *s.hit = 1, true;
+            }
           }
           if (bits != 0) {
             for (std::uint32_t b = bits; b != 0; b &= b - 1) prefetch_lines(v.begin() + lowest_bit(b), sizeof(T));
