@@ -168,9 +168,9 @@ template <class A, class B> bool intersect_adl(const A &a, const B &b) { return 
 /// whose intersect() is exact: this project's Disk (intersect.h defines
 /// BVH_EXACT_DISKS beside its predicate). The course's own Disk is not: its
 /// intersect() has a tolerance, which only it can apply.
-template <class T> constexpr bool kExactDisk = false;
+template <class T> inline constexpr bool kExactDisk = false;
 #if defined(BVH_EXACT_DISKS)
-template <> constexpr bool kExactDisk<Disk> = true;
+template <> inline constexpr bool kExactDisk<Disk> = true; // (inline: one definition in every translation unit)
 #endif
 
 } // namespace detail
