@@ -218,11 +218,12 @@ template <class T> struct shape_traits {
   /// True when a and b share a point (touching counts).
   static bool intersect(const T &a, const T &b) { return detail::intersect_adl(a, b); }
   /// A promise that each shape is the closed disk inscribed in its box
-  /// (up to the rounding of the box's sides) and that intersect() is
-  /// exactly "the closed disks share a point". Collision searches of trees
-  /// with leaf summaries (widths 4 to 8) then decide most shapes from the
-  /// summary alone, without reading them; the answers are the same. True
-  /// for this project's Disk; an adaptor of your own may declare it too.
+  /// (up to the rounding of the box's sides to double or float) and that
+  /// intersect() is exactly "the closed disks share a point". Collision
+  /// searches of trees with leaf summaries (widths 4 to 8) then decide
+  /// most shapes from the summary alone, without reading them; the answers
+  /// are the same. True for this project's Disk; an adaptor of your own
+  /// may declare it too.
   static constexpr bool inscribed_disks = detail::kExactDisk<T>;
 };
 
@@ -3940,7 +3941,8 @@ template <int W, class F> BVH_ALWAYS_INLINE bool each_candidate(const Node<W> &n
 }
 
 /// A collision probe read as a disk (InscribedDisks): the disk inscribed
-/// in its box, with `slack` covering the rounding of the box's sides.
+/// in its box, with `slack` covering the rounding of the box's sides (to
+/// double or to float: 2^-22 of the largest side is four times float's).
 /// Unusable (no decision from codes) unless the box is square up to that
 /// rounding and its sides are finite and below 1e100.
 struct DiskProbe {
@@ -3950,7 +3952,7 @@ struct DiskProbe {
     DiskProbe p;
     const double m = std::max(std::max(std::fabs(b.x0), std::fabs(b.y0)), std::max(std::fabs(b.x1), std::fabs(b.y1)));
     if (!(m < 1e100) || !(b.x0 <= b.x1) || !(b.y0 <= b.y1)) return p; // (NaN fails these too)
-    p.slack = 0x1p-48 * m; // (a few units in the last place of the largest side)
+    p.slack = 0x1p-22 * m;
     const double wx = 0.5 * (b.x1 - b.x0), wy = 0.5 * (b.y1 - b.y0);
     p.x = 0.5 * (b.x0 + b.x1);
     p.y = 0.5 * (b.y0 + b.y1);
@@ -3966,7 +3968,8 @@ struct DiskProbe {
 /// d], q = 1 / scale. The codes are computed in float (codes_of): float(v)
 /// and the subtraction and product each round by at most 2^-24 relative,
 /// which moves the side by less than 2^-21 (|o| + 512 q); d is four times
-/// that, and also covers the rounding of a disk's box, 2^-52 of its sides.
+/// that, and also covers the rounding of a disk's box to double or float
+/// (2^-24 of its sides, which lie within 256 q of o).
 struct CodeFrame {
   double ox = 0, oy = 0, qx = 0, qy = 0, dx = 0, dy = 0;
   bool usable = false;

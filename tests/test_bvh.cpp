@@ -781,11 +781,31 @@ TEST(disks_decided_from_codes_agree_with_intersect) {
 // The same through whole trees: collision() and collisions() at widths 4
 // and 8 against intersect() over every disk, with probes placed near
 // tangency of a stored disk, and against a tree whose traits make no
-// promise (every candidate read and tested).
+// promise (every candidate read and tested) and one whose boxes are
+// rounded to float.
 struct NoPromise {
   static decltype(auto) box(const Disk &d) { return d.getBox(); }
   static decltype(auto) center(const Disk &d) { return d.getCenter(); }
   static bool intersect(const Disk &a, const Disk &b) { return ::intersect(a, b); }
+};
+// A disk whose box is rounded outwards to float, with the promise: its
+// box is the disk's up to float's rounding, which the decisions allow for.
+struct FloatBoxDisks {
+  static float down(double v) {
+    float f = float(v);
+    return double(f) > v ? std::nextafter(f, -std::numeric_limits<float>::infinity()) : f;
+  }
+  static float up(double v) {
+    float f = float(v);
+    return double(f) < v ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
+  }
+  static bvh::bounds box(const Disk &d) {
+    const BoundingBox b = d.getBox();
+    return {down(b.getMin().x), down(b.getMin().y), up(b.getMax().x), up(b.getMax().y)};
+  }
+  static decltype(auto) center(const Disk &d) { return d.getCenter(); }
+  static bool intersect(const Disk &a, const Disk &b) { return ::intersect(a, b); }
+  static constexpr bool inscribed_disks = true;
 };
 template <int W> void collisions_near_tangency(unsigned seed) {
   note("seed " + std::to_string(seed) + " width " + std::to_string(W));
@@ -794,15 +814,18 @@ template <int W> void collisions_near_tangency(unsigned seed) {
   std::uniform_real_distribution<double> unit(0, 1);
   BVH<Disk, bvh::shape_traits<Disk>, W> tree(W == 8 ? 32 : 16);
   BVH<Disk, NoPromise, W> plain(W == 8 ? 32 : 16);
+  BVH<Disk, FloatBoxDisks, W> floats(W == 8 ? 32 : 16);
   std::vector<Disk> kept;
   const double offset = rng() % 2 ? 0 : 4096;
   for (int i = 0; i < scaled(4000); ++i) {
     const Disk d(Point(offset + 60 * unit(rng), offset + 60 * unit(rng)), 0.2 + 0.4 * unit(rng), Color());
     const bool hit = tree.collision(d);
     CHECK_EQ(hit, plain.collision(d));
+    CHECK_EQ(hit, floats.collision(d));
     if (!hit) {
       tree.insert(d);
       plain.insert(d);
+      floats.insert(d);
       kept.push_back(d);
     }
   }
@@ -816,12 +839,15 @@ template <int W> void collisions_near_tangency(unsigned seed) {
     probes.push_back(Disk(Point(d.getCenter().x + reach * std::cos(a), d.getCenter().y + reach * std::sin(a)), r, Color()));
   }
   const std::vector<bool> together = tree.collisions(probes);
+  CHECK(floats.collisions(probes) == together);
   int wrong = 0;
   for (std::size_t k = 0; k < probes.size(); ++k) {
     bool expected = false;
     for (const Disk &d : kept) expected = expected || intersect(d, probes[k]);
     const bool one = tree.collision(probes[k]);
-    if (one != expected || together[k] != expected || plain.collision(probes[k]) != expected) ++wrong;
+    if (one != expected || together[k] != expected || plain.collision(probes[k]) != expected ||
+        floats.collision(probes[k]) != expected)
+      ++wrong;
   }
   CHECK_EQ(wrong, 0);
 }
