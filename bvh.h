@@ -4228,6 +4228,41 @@ template <class T, class Tr, int W, class V> void visit_overlapping(const Core<T
   });
 }
 
+/// Calls visit(s) on each stored shape s that intersects `shape` (T's
+/// intersect(); only shapes whose box meets shape's are tested), in
+/// visit_overlapping()'s order, until it returns false. Where disks are
+/// decided from codes (disk_probe), a disk that surely misses is not read
+/// and one that surely meets is not tested again.
+template <class T, class Tr, int W, class V> void visit_intersecting(const Core<T, Tr, W> &core, const T &shape, V &&visit) {
+  const Box box = box_of(core.traits, shape);
+  if (core.root < 0 || !core.nodes.box(core.root).overlaps(box)) return;
+  const Probe probe = Probe::around(box);
+  const DiskProbe disk = disk_probe(core, box);
+  walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
+    const Node<W> &node = core.nodes.node(n);
+    if (node.is_leaf()) {
+      const Span<const T> v = core.leaves.shapes(node);
+      const auto tested = [&](std::size_t i) {
+        return !box_of(core.traits, v[i]).overlaps(box) || !core.traits.intersect(v[i], shape) || visit(v[i]);
+      };
+      if constexpr (kDisksFromCodes<Tr, W>) {
+        if (disk.usable && node.coded() == int(v.size())) {
+          const CodeFrame f = CodeFrame::of(node.frame());
+          for (std::uint32_t bits = node.meets(box, int(v.size())); bits != 0; bits &= bits - 1) {
+            const int i = lowest_bit(bits);
+            const int sure = f.usable ? disk_decision(node, i, f, disk) : 0;
+            if (sure < 0) continue;
+            if (!(sure > 0 ? visit(v[i]) : tested(std::size_t(i)))) return kStop;
+          }
+          return 0;
+        }
+      }
+      return each_candidate(node, v.size(), box, tested) ? 0 : kStop;
+    }
+    return child_hits(node, probe);
+  });
+}
+
 /// visit_overlapping() suspended between the shapes it finds: walk()'s
 /// stack and steps, kept between calls, and the current leaf's shapes not
 /// yet looked at. With `shape`, only shapes that intersect it are found.
@@ -6143,9 +6178,7 @@ public:
   /// intersect(): exact, touching counts, for this project's shapes). If f
   /// returns bool, returning false stops the search.
   template <class F> void query(const T &shape, F &&f) const {
-    detail::visit_overlapping(core_, detail::box_of(core_.traits, shape), [&](const T &s) {
-      return !core_.traits.intersect(s, shape) || detail::keep_going(f, s);
-    });
+    detail::visit_intersecting(core_, shape, [&](const T &s) { return detail::keep_going(f, s); });
   }
   /// Copies every stored shape that intersects `shape` to `out` (an output
   /// iterator, e.g. std::back_inserter(vector)) and returns its end.

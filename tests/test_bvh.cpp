@@ -778,8 +778,8 @@ TEST(disks_decided_from_codes_agree_with_intersect) {
   CHECK(candidates_decided > candidates / 3);
 }
 
-// The same through whole trees: collision() and collisions() at widths 4
-// and 8 against intersect() over every disk, with probes placed near
+// The same through whole trees: collision(), collisions() and query(shape)
+// at widths 4 and 8 against intersect() over every disk, with probes placed near
 // tangency of a stored disk, and against a tree whose traits make no
 // promise (every candidate read and tested) and one whose boxes are
 // rounded to float.
@@ -848,6 +848,14 @@ template <int W> void collisions_near_tangency(unsigned seed) {
     if (one != expected || together[k] != expected || plain.collision(probes[k]) != expected ||
         floats.collision(probes[k]) != expected)
       ++wrong;
+    // query(shape): the same shapes in the same order as the tree without
+    // the promise (the same tree), each of them intersecting the probe
+    std::vector<Disk> found, found_plain;
+    tree.query_into(probes[k], std::back_inserter(found));
+    plain.query_into(probes[k], std::back_inserter(found_plain));
+    std::size_t meeting = 0;
+    for (const Disk &d : kept) meeting += intersect(d, probes[k]) ? 1 : 0;
+    if (!(found == found_plain) || found.size() != meeting) ++wrong;
   }
   CHECK_EQ(wrong, 0);
 }
