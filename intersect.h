@@ -92,8 +92,10 @@ template <int N> struct Expansion {
   Expansion() = default;
   Expansion(const Expansion &o) : n(o.n) { std::copy(o.v, o.v + o.n, v); }
   Expansion &operator=(const Expansion &o) {
-    n = o.n;
-    std::copy(o.v, o.v + o.n, v);
+    if (this != &o) { // (std::copy onto its own range breaks its precondition)
+      n = o.n;
+      std::copy(o.v, o.v + o.n, v);
+    }
     return *this;
   }
   int sign() const { return n == 0 ? 0 : (v[n - 1] > 0 ? 1 : -1); }
