@@ -30,6 +30,7 @@
 
 #if !defined(BENCH_NO_BOOST) && __has_include(<boost/geometry.hpp>)
 #define HAVE_BOOST 1
+#define BOOST_ALLOW_DEPRECATED_HEADERS // Boost 1.74's own includes, not ours
 #include <boost/geometry.hpp>
 #include <boost/geometry/index/rtree.hpp>
 #else
