@@ -1448,6 +1448,10 @@ public:
     return s;
   }
   /// Destroys the slot's shapes and gives the slot back (never throws).
+  /// A class none of whose slots is in use any more then gives back its
+  /// blocks too (not while threads share the pool, whose lanes may hold
+  /// its slots): a leaf grows through the small classes once, while the
+  /// tree is young, and each would keep a block for one free slot.
   void release(Slot s) noexcept {
     LaneCache *own = sharing_.to ? LaneCache::current() : nullptr;
     if (own && s.cls < own->slots.size()) {
@@ -1455,6 +1459,10 @@ public:
       c.clear(s.index);
       sharing_.give_back(own->slots[s.cls], s.index, [&](std::uint32_t i) { c.free_slots.push_back(i); },
                          chunk_of(s.cls));
+    } else if (!sharing_.to) {
+      Class &c = classes_[s.cls];
+      c.release(s.index);
+      if (c.free_slots.size() == c.sizes.size()) c.drop();
     } else {
       sharing_.locked(false, [&] { classes_[s.cls].release(s.index); });
     }
@@ -1674,6 +1682,16 @@ private:
     void release(std::uint32_t i) noexcept {
       clear(i);
       free_slots.push_back(i); // (never allocates: allocate() made room)
+    }
+    /// Gives back every block and list of a class whose slots are all
+    /// free: it is then as new.
+    void drop() noexcept {
+      BVH_INVARIANT(free_slots.size() == sizes.size(), "dropping a class with slots in use");
+      destroy();
+      std::vector<std::uint32_t>().swap(sizes);
+      std::vector<std::uint32_t>().swap(free_slots);
+      std::vector<T *>().swap(blocks_);
+      std::vector<std::uint32_t *>().swap(id_blocks_);
     }
     /// Destroys slot i's shapes.
     void clear(std::uint32_t i) noexcept {

@@ -293,8 +293,12 @@ TEST(leaf_pool_matches_a_model) {
         pool.release(gone);
         slots.erase(slots.begin() + long(k));
         model.erase(model.begin() + long(k));
+        // (unless it was the class's last slot in use: the class then gave
+        // its blocks back and starts again at slot 0)
+        bool class_in_use = false;
+        for (const Pool::Slot &s : slots) class_in_use = class_in_use || s.cls == gone.cls;
         const Pool::Slot again = pool.allocate(Pool::capacity_of(gone.cls));
-        CHECK(again.cls == gone.cls && again.index == gone.index);
+        CHECK(again.cls == gone.cls && again.index == (class_in_use ? gone.index : 0));
         slots.push_back(again);
         model.emplace_back();
       }
@@ -312,6 +316,35 @@ TEST(leaf_pool_matches_a_model) {
     for (const std::vector<int> &m : model) held += m.size();
     CHECK_EQ(std::size_t(Tracked::live), held);
   }
+  CHECK_EQ(Tracked::live, 0);
+}
+
+TEST(leaf_pool_classes_out_of_use_give_their_blocks_back) {
+  // A leaf grows through the small classes while the tree is young; a
+  // class whose slots are all free again holds no block (each would keep
+  // a whole block for nothing), and is as new when used again.
+  using Pool = bvh::detail::LeafPool<Tracked>;
+  Pool pool;
+  Pool::Slot slot = pool.allocate(1);
+  for (int i = 0; i < 40; ++i) pool.push_back(slot, Tracked(i), std::uint32_t(i)); // classes 1, 2, 4, 5, ..., 40
+  Pool::Slot other = pool.allocate(40); // a second slot of the same class as `slot`
+  CHECK_EQ(other.cls, slot.cls);
+  Pool::Bytes b = pool.bytes();
+  CHECK_EQ(b.shapes, 40 * sizeof(Tracked));
+  // Only the blocks of the one class in use: every earlier class is empty.
+  const std::size_t block_places = b.slack / (sizeof(Tracked) + sizeof(std::uint32_t)) + 40;
+  CHECK(block_places <= 2 * 32768 / sizeof(Tracked) + 2 * Pool::capacity_of(slot.cls));
+  pool.release(other);
+  CHECK_EQ(pool.bytes().shapes, 40 * sizeof(Tracked)); // `slot` keeps its class's blocks
+  for (int i = 0; i < 40; ++i) CHECK_EQ(pool.data(slot)[i].v, i);
+  pool.release(slot);
+  b = pool.bytes();
+  CHECK_EQ(b.shapes + b.ids + b.slack, std::size_t(0));
+  CHECK_EQ(Tracked::live, 0);
+  Pool::Slot again = pool.allocate(3);
+  for (int i = 0; i < 7; ++i) pool.push_back(again, Tracked(100 + i), std::uint32_t(i));
+  for (int i = 0; i < 7; ++i) CHECK(pool.data(again)[i].v == 100 + i && pool.ids(again)[i] == std::uint32_t(i));
+  pool.release(again);
   CHECK_EQ(Tracked::live, 0);
 }
 
