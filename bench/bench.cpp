@@ -16,7 +16,8 @@
 //
 // Each (workload, method, run) runs in a forked child, so its peak RSS
 // (wait4's ru_maxrss) is its own; only the index work is timed (loading is
-// not). "peak MB" is the child's whole peak, which includes the candidate
+// not, nor the child's first touch of the input pages it shares with the
+// parent: touch_pages). "peak MB" is the child's whole peak, which includes the candidate
 // shapes it inherited; "+MB" is that peak minus the child's RSS when it
 // started, i.e. what the index itself added.
 //
@@ -351,6 +352,8 @@ template <class T> Outcome discard_brute(const std::vector<T> &c) {
 // disk): insert-only, no per-cell allocation. The practical floor. ---
 
 Outcome discard_grid(const std::vector<Disk> &c) {
+  Outcome o;
+  Timer timer; // (the scan for the cell size and bounds is the grid's own work)
   double max_r = 0, x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (const Disk &d : c) {
     max_r = std::max(max_r, d.getRadius());
@@ -360,8 +363,6 @@ Outcome discard_grid(const std::vector<Disk> &c) {
     y1 = std::max(y1, d.getCenter().y);
   }
   const double cell = std::max(2 * max_r, 1e-9);
-  Outcome o;
-  Timer timer;
   const long nx = long((x1 - x0) / cell) + 1, ny = long((y1 - y0) / cell) + 1;
   std::vector<std::int32_t> head(std::size_t(nx * ny), -1), next;
   std::vector<Disk> kept;
@@ -618,9 +619,30 @@ bool read_all(int fd, void *p, std::size_t n) {
   return true;
 }
 
+/// A workload's input arrays, which the parent has loaded (pointer, bytes).
+using Inputs = std::vector<std::pair<const void *, std::size_t>>;
+
+/// Reads one byte of every page of `inputs`. A forked child shares the
+/// parent's pages of them, and its first touch of each is dear on some
+/// virtual machines (on a PVM host, reading W2's 40 MB of candidates cost
+/// a forked child about a fifth of a second more than the same loop in its
+/// own process): the child does it before the timed work, so that every
+/// method is timed on an input already in its memory, as a program's own
+/// input is. (The grid's scan for its bounds used to do this for the grid
+/// alone.)
+unsigned touch_pages(const Inputs &inputs) {
+  unsigned sum = 0;
+  for (const auto &in : inputs) {
+    const volatile unsigned char *p = static_cast<const unsigned char *>(in.first);
+    for (std::size_t i = 0; i < in.second; i += 4096) sum += p[i];
+  }
+  return sum; // (volatile reads: not optimized away)
+}
+
 /// Runs `work` in a child process (or here, when `in_process`); returns its
-/// seconds and ids, the child's RSS when it started and its peak RSS.
-Measured measure(const std::function<Outcome()> &work, bool in_process) {
+/// seconds and ids, the child's RSS when it started and its peak RSS. The
+/// child first touches `inputs` (touch_pages).
+Measured measure(const std::function<Outcome()> &work, bool in_process, const Inputs &inputs = {}) {
   Measured m;
   if (in_process) {
     m.start_kb = rss_now_kb();
@@ -649,6 +671,7 @@ Measured measure(const std::function<Outcome()> &work, bool in_process) {
   }
   if (pid == 0) {
     close(fds[0]);
+    (void)touch_pages(inputs);
     const long start_kb = rss_now_kb();
     const Outcome o = work();
     const std::uint64_t n = o.ids.size();
@@ -884,6 +907,8 @@ void run_workload(const Options &opt, const Workload &w, const std::vector<T> &c
     }
     rows.push_back(row);
   }
+  Inputs inputs{{cand.data(), cand.size() * sizeof(T)}};
+  if (probes) inputs.emplace_back(probes->data(), probes->size() * sizeof(T));
   // Runs interleave the methods, so slow drift hits every method alike.
   Ids reference;
   bool have_reference = false;
@@ -898,7 +923,7 @@ void run_workload(const Options &opt, const Workload &w, const std::vector<T> &c
             else run_discard(m, cand, o);
             return o;
           },
-          opt.in_process);
+          opt.in_process, inputs);
       if (!res.ok) {
         row.note = "FAILED: " + res.error;
         rep.mismatch = true;
