@@ -82,8 +82,9 @@
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
 #include <emmintrin.h>
 #endif
-// A build's large scratch arrays in transparent huge pages (BuildAllocator):
-// Linux only (not Android, whose aligned_alloc depends on the API level).
+// A build's large scratch arrays in transparent huge pages (BuildAllocator),
+// and the tree's new blocks faulted in by one call each (populate): Linux
+// only (not Android, whose aligned_alloc depends on the API level).
 #if defined(__linux__) && !defined(__ANDROID__) && !defined(BVH_NO_HUGE_PAGES)
 #define BVH_HUGE_PAGES 1
 #include <sys/mman.h>
@@ -315,6 +316,24 @@ private:
   std::size_t size_ = 0, capacity_ = N;
 };
 
+/// Faults in the whole pages of [p, p + bytes), a block just allocated,
+/// in one call where the kernel can (madvise MADV_POPULATE_WRITE, Linux
+/// 5.14; elsewhere, or if it fails, nothing happens): a tree writes a new
+/// block's pages soon, one by one, and where a page fault is dear (a
+/// virtual machine's) one call for them all costs much less than a fault
+/// each. memory() counts whole blocks either way. BVH_NO_HUGE_PAGES turns
+/// it off.
+inline void populate(void *p, std::size_t bytes) noexcept {
+#if BVH_HUGE_PAGES && defined(MADV_POPULATE_WRITE)
+  const std::uintptr_t a = reinterpret_cast<std::uintptr_t>(p), page = 4096;
+  const std::uintptr_t lo = (a + page - 1) & ~(page - 1), hi = (a + bytes) & ~(page - 1);
+  if (hi > lo) ::madvise(reinterpret_cast<void *>(lo), hi - lo, MADV_POPULATE_WRITE); // (only pages inside the block)
+#else
+  (void)p;
+  (void)bytes;
+#endif
+}
+
 /// The node arrays: a vector's interface (index, size, emplace_back) over
 /// fixed blocks of kBlock elements. Growing never moves or copies what is
 /// stored, so a growing tree never holds two copies of its nodes at once,
@@ -322,7 +341,8 @@ private:
 /// Each block starts on a cache line (malloc promises only 16 bytes), so
 /// that a ternary Node, 64 bytes, is one line and not two. Elements are
 /// constructed as they are appended: a small tree's copy copies its
-/// nodes, not whole blocks, and a block's pages are touched as it fills.
+/// nodes, not whole blocks. A new block's pages are faulted in at once
+/// (populate).
 template <class X> class BlockVector {
   static_assert(std::is_trivially_destructible<X>::value && std::is_trivially_copyable<X>::value,
                 "blocks are copied and freed without running element code");
@@ -426,6 +446,7 @@ private:
   /// tables have room for it (reserve_blocks).
   X *add_block() {
     std::unique_ptr<unsigned char[]> raw(new unsigned char[kBlockBytes]);
+    populate(raw.get(), kBlockBytes);
     const std::size_t skip = (kLine - reinterpret_cast<std::uintptr_t>(raw.get()) % kLine) % kLine;
     raw_.push_back(std::move(raw)); // (no throw: reserved)
     items_.push_back(reinterpret_cast<X *>(raw_.back().get() + skip));
@@ -1754,8 +1775,10 @@ private:
       reserve_for(blocks_, blocks_.size() + 1);
       reserve_for(id_blocks_, id_blocks_.size() + 1);
       T *b = std::allocator<T>().allocate(n);
+      populate(b, n * sizeof(T));
       try {
         id_blocks_.push_back(std::allocator<std::uint32_t>().allocate(n));
+        populate(id_blocks_.back(), n * sizeof(std::uint32_t));
       } catch (...) {
         std::allocator<T>().deallocate(b, n);
         throw;
