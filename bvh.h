@@ -321,8 +321,10 @@ private:
 /// 5.14; elsewhere, or if it fails, nothing happens): a tree writes a new
 /// block's pages soon, one by one, and where a page fault is dear (a
 /// virtual machine's) one call for them all costs much less than a fault
-/// each. memory() counts whole blocks either way. BVH_NO_HUGE_PAGES turns
-/// it off.
+/// each. An array's first block is left to fill page by page: a small
+/// tree, which never fills it, then holds only the pages it uses.
+/// memory() counts whole blocks either way. BVH_NO_HUGE_PAGES turns it
+/// off.
 inline void populate(void *p, std::size_t bytes) noexcept {
 #if BVH_HUGE_PAGES && defined(MADV_POPULATE_WRITE)
   const std::uintptr_t a = reinterpret_cast<std::uintptr_t>(p), page = 4096;
@@ -446,7 +448,7 @@ private:
   /// tables have room for it (reserve_blocks).
   X *add_block() {
     std::unique_ptr<unsigned char[]> raw(new unsigned char[kBlockBytes]);
-    populate(raw.get(), kBlockBytes);
+    if (!raw_.empty()) populate(raw.get(), kBlockBytes); // (not the first: see populate)
     const std::size_t skip = (kLine - reinterpret_cast<std::uintptr_t>(raw.get()) % kLine) % kLine;
     raw_.push_back(std::move(raw)); // (no throw: reserved)
     items_.push_back(reinterpret_cast<X *>(raw_.back().get() + skip));
@@ -1775,10 +1777,11 @@ private:
       reserve_for(blocks_, blocks_.size() + 1);
       reserve_for(id_blocks_, id_blocks_.size() + 1);
       T *b = std::allocator<T>().allocate(n);
-      populate(b, n * sizeof(T));
+      const bool first = blocks_.empty(); // (see populate)
+      if (!first) populate(b, n * sizeof(T));
       try {
         id_blocks_.push_back(std::allocator<std::uint32_t>().allocate(n));
-        populate(id_blocks_.back(), n * sizeof(std::uint32_t));
+        if (!first) populate(id_blocks_.back(), n * sizeof(std::uint32_t));
       } catch (...) {
         std::allocator<T>().deallocate(b, n);
         throw;
