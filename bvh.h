@@ -327,6 +327,8 @@ private:
 /// off.
 inline void populate(void *p, std::size_t bytes) noexcept {
 #if BVH_HUGE_PAGES && defined(MADV_POPULATE_WRITE)
+  // (4 kB pages; where the kernel's are larger, as on some ARM64 kernels,
+  // a start that is not on one of its pages makes the call fail: no hint)
   const std::uintptr_t a = reinterpret_cast<std::uintptr_t>(p), page = 4096;
   const std::uintptr_t lo = (a + page - 1) & ~(page - 1), hi = (a + bytes) & ~(page - 1);
   if (hi > lo) ::madvise(reinterpret_cast<void *>(lo), hi - lo, MADV_POPULATE_WRITE); // (only pages inside the block)
