@@ -1381,6 +1381,23 @@ template <int W> BVH_ALWAYS_INLINE int enter_children(IndexStack &stack, const N
   return next;
 }
 
+/// Asks the cache for the nodes of the children that enter_children() left
+/// on the stack (all those `enter` names but `next`) at widths 4 to 8:
+/// their misses do not depend on the subtree entered first, so they
+/// overlap with it. (At the course's width 3 a node is one line, and the
+/// walk stays as it was.)
+template <int W>
+BVH_ALWAYS_INLINE void prefetch_stacked(const NodeStore<W> &nodes, const Node<W> &node, unsigned enter, int next) {
+  if constexpr (W >= 4) {
+    for (unsigned b = (enter | enter >> kFirst) & child_bits(W); b != 0; b &= b - 1) {
+      const int c = node.child(lowest_bit(b));
+      if (c != next) prefetch_lines(&nodes.node(c), sizeof(Node<W>));
+    }
+  } else {
+    (void)nodes, (void)node, (void)enter, (void)next;
+  }
+}
+
 /// The one depth-first traversal (collision, the queries, find_equal, the
 /// rebuilds' gathering, every pre-order pass): from node `from`, each node
 /// visited before its children. visit(n) returns which children of n to
@@ -1395,7 +1412,9 @@ template <int W, class Visit> BVH_ALWAYS_INLINE bool walk(const NodeStore<W> &no
     if (enter & kStop) return false;
     if (enter != 0) {
       BVH_INVARIANT(!nodes.node(n).is_leaf(), "walk(): a leaf's visit enters children");
-      n = enter_children(stack, nodes.node(n), enter);
+      const Node<W> &node = nodes.node(n);
+      n = enter_children(stack, node, enter);
+      prefetch_stacked(nodes, node, enter, n);
       continue;
     }
     if (stack.empty()) return true;
@@ -4356,7 +4375,11 @@ public:
         continue;
       }
       const unsigned hits = child_hits(node, probe_);
-      if (hits != 0) stack_.push(enter_children(stack_, node, hits)); // (it pops first)
+      if (hits != 0) {
+        const int next = enter_children(stack_, node, hits);
+        prefetch_stacked(core_->nodes, node, hits, next);
+        stack_.push(next); // (it pops first)
+      }
     }
   }
 
