@@ -1,4 +1,4 @@
-// examples/wide_tree.cpp — a tree of width 8 with 16 shapes a leaf, the
+// examples/wide_tree.cpp — a tree of width 8 with 32 shapes a leaf, the
 // fastest and smallest configuration measured (docs/library.txt, WIDTH),
 // beside the course's ternary tree: Poisson-disk sampling into both, then
 // the same collision queries. Checks that both keep the same disks and
@@ -16,9 +16,9 @@ int main() {
   for (int i = 0; i < 20000; ++i)
     candidates.push_back(Disk(Point(rng.uniform(0, 1000), rng.uniform(0, 1000)), rng.uniform(1, 4), Color(0, 0, 255)));
   // [readme:wide]
-  bvh::BVH<Disk, bvh::shape_traits<Disk>, 8> wide(/*split_threshold=*/16);
+  bvh::BVH<Disk, bvh::shape_traits<Disk>, 8> wide(/*split_threshold=*/32);
   wide.insert_disjoint(candidates);                  // the loop's result, on every core
-  const auto fill = wide.fill();                     // mean children / 8, shapes / 16
+  const auto fill = wide.fill();                     // mean children / 8, shapes / 32
   // [end]
   BVH<Disk> course(4);
   for (const Disk &d : candidates)
