@@ -28,6 +28,14 @@
 #include <vector>
 
 #include "bvh.h"
+
+// make test builds this suite with g++ under -std=c++20 (the unit suites'
+// C++20 build is the sanitizer build's, by clang++ and libc++ when they are
+// installed): the iterator's C++20 concept, with libstdc++.
+#if __cplusplus >= 202002L
+static_assert(std::bidirectional_iterator<BVH<Disk>::iterator>);
+static_assert(std::bidirectional_iterator<BVH<Shape, bvh::shape_traits<Shape>, 8>::iterator>);
+#endif
 #include "check.h"
 #include "scenes.h"
 

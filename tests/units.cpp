@@ -10,8 +10,7 @@
 //                                       build/test_units dynamic erase_everything_then_reuse
 //
 // runs one suite as its own program would (its main: the seed line, its
-// cases, "N passed, M failed"). -DUNITS_PORTABLE: test_bvh and test_dynamic
-// alone (make test's -std=c++20 -DBVH_NO_SIMD build).
+// cases, "N passed, M failed").
 //
 // The suites whose build defines macros that change bvh.h (test_disjoint,
 // test_lazy_handles, test_names) or that replace operator new
@@ -68,7 +67,6 @@ namespace suite_dynamic {
 #include "test_dynamic.cpp"
 }
 
-#ifndef UNITS_PORTABLE
 #undef CHECK_SUITE
 #define CHECK_SUITE "moving"
 namespace suite_moving {
@@ -92,7 +90,6 @@ namespace suite_threads {
 namespace suite_parse {
 #include "test_parse.cpp"
 }
-#endif
 
 #undef main
 
@@ -104,12 +101,10 @@ int main(int argc, char **argv) {
   static const Suite suites[] = {
       {"bvh", &suite_bvh::suite_main},
       {"dynamic", &suite_dynamic::suite_main},
-#ifndef UNITS_PORTABLE
       {"moving", &suite_moving::suite_main},
       {"intersect", &suite_intersect::suite_main},
       {"threads", &suite_threads::suite_main},
       {"parse", &suite_parse::suite_main},
-#endif
   };
   for (const Suite &s : suites)
     if (argc > 1 && std::strcmp(argv[1], s.name) == 0) {
