@@ -306,7 +306,7 @@ asserts() {
 # queries from several threads) under ThreadSanitizer: a data race fails it.
 tsan() {
   BVH_TEST_SCALE=0.25 run_suite test_threads_under_thread_sanitizer "$BUILD/test_threads_tsan"
-  BVH_TEST_SCALE=0.1 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_disjoint_tsan"
+  BVH_TEST_SCALE=0.03 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_disjoint_tsan"
   BVH_TEST_SCALE=0.05 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lazy_handles_tsan"
 }
 

@@ -41,10 +41,11 @@ inline bool on = true;
 } // namespace lanes_probe
 #define BVH_DISJOINT_PROFILE lanes_probe::lap
 #define BVH_DISJOINT_PROFILE_ON lanes_probe::on
-// Lanes from trees of 512 shapes (bvh.h's default: 4,096), so that the
-// scaled-down runs (valgrind's, the sanitizers') take them on small trees.
-#define BVH_DISJOINT_LANES_MIN 512
-#define BVH_DISJOINT_SWEEP_MIN 512
+// Lanes, and step 2's sweep on every thread, from 128 shapes (bvh.h's
+// default: 4,096), so that the scaled-down runs (valgrind's, the
+// sanitizers') take them on small trees.
+#define BVH_DISJOINT_LANES_MIN 128
+#define BVH_DISJOINT_SWEEP_MIN 128
 // Interleaved searches, and one thread's batches, from trees of 64 shapes
 // (bvh.h's default: 32,768).
 #define BVH_DISJOINT_INTERLEAVE_MIN 64
@@ -198,14 +199,14 @@ TEST(disjoint_batches_adapt_and_stay_exact) {
                      "BVH_SEED=" + std::to_string(seed) + " sparse, dense, sparse");
 }
 
-/// A size of the lanes' cases: scaled down, but never below an eighth, so
+/// A size of the lanes' cases: scaled down, but never below a 32nd, so
 /// that trees keep above BVH_DISJOINT_LANES_MIN.
-int lanes_scaled(int n) { return std::max(n / 8, scaled(n)); }
+int lanes_scaled(int n) { return std::max(n / 32, scaled(n)); }
 
 // A long run of rejected candidates (they fall on one big disk) grows the
 // batch to its largest; then tens of thousands survive the tree at once and
 // meet each other in one batch: step 2's sweep runs on every thread (here
-// from 512 survivors), also in the scaled-down runs (ThreadSanitizer's).
+// from 128 survivors), also in the scaled-down runs (ThreadSanitizer's).
 TEST(disjoint_one_huge_batch_of_survivors) {
   const unsigned seed = base_seed() + 470;
   Maker make(seed);
@@ -229,7 +230,7 @@ std::vector<Disk> lanes_candidates(Maker &make) {
 }
 
 // Trees large enough for step 4 to insert on every thread at once (the
-// lanes: here from 512 shapes and 64 kept candidates a batch), at every split
+// lanes: here from 128 shapes and 64 kept candidates a batch), at every split
 // threshold, with and without a depth limit (leaves at the limit grow past
 // it, through larger slots), by both build rules, from empty and from
 // constructed trees, with rebuilds of lopsided nodes; scaled down no further
@@ -561,8 +562,11 @@ TEST(disjoint_rethrows_a_copy_in_the_lanes_and_holds_the_prefix) {
   const unsigned seed = base_seed() + 660;
   Maker make(seed);
   std::vector<fragile::OnceFragile> c;
-  // (16,000 candidates; scaled-down runs at least 2,000, still past the lanes' minimum.)
-  for (const Disk &d : make.scene<Disk>(lanes_scaled(16000), 0.5)) c.push_back(fragile::OnceFragile(d, int(c.size())));
+  // (16,000 candidates; scaled-down runs at least 2,000, more than
+  // lanes_scaled gives: on 8 threads the first batch, which an empty tree
+  // inserts serially, is about 500 candidates long, and the victim must come
+  // after it.)
+  for (const Disk &d : make.scene<Disk>(std::max(2000, scaled(16000)), 0.5)) c.push_back(fragile::OnceFragile(d, int(c.size())));
   std::vector<std::size_t> kept;
   {
     BVH<fragile::OnceFragile> loop(4);
