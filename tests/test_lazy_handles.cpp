@@ -26,6 +26,9 @@ inline void lap(int step, double) {
 }
 } // namespace lanes_seen
 #define BVH_DISJOINT_PROFILE lanes_seen::lap
+// Lanes from trees of 128 shapes (bvh.h's default: 4,096), so that the
+// scaled-down runs (valgrind's, the sanitizers') take them on small trees.
+#define BVH_DISJOINT_LANES_MIN 128
 
 #include "bvh.h"
 #include "check.h"
@@ -303,8 +306,8 @@ TEST(ids_are_the_models_with_the_table_built_at_the_end) {
   for (unsigned k = 0; k < 6; ++k) random_changes(base_seed() + 9300 + k, true, scaled(1500));
 }
 
-/// insert_disjoint's lanes (a tree of at least 4096 shapes, several
-/// threads) write the table from several threads when it is built, and
+/// insert_disjoint's lanes (a tree of at least BVH_DISJOINT_LANES_MIN
+/// shapes, several threads) write the table from several threads when it is built, and
 /// skip it when not: the ids are the loop's either way.
 TEST(lanes_give_the_loops_ids_with_and_without_the_table) {
   const unsigned seed = base_seed() + 9400;
@@ -321,17 +324,18 @@ TEST(lanes_give_the_loops_ids_with_and_without_the_table) {
       for (const Disk &d : make.scene<Disk>(n, 1)) v.push_back(Disk(d.getCenter(), d.getRadius() * 0.2, d.getColor()));
       return v;
     };
-    const std::vector<Disk> start = small(6000);
+    // (Scaled down to an eighth at most: the tree stays past the lanes' minimum.)
+    const std::vector<Disk> start = small(std::max(750, scaled(6000)));
     CHECK(tree.insert_disjoint(start, 2) == model_disjoint(m, start));
     // Free ids in the middle, so that reused and fresh ids both go to lanes.
-    for (int k = 0; k < 300; ++k) {
+    for (int k = 0; k < std::max(40, scaled(300)); ++k) {
       auto it = tree.begin();
       std::advance(it, long(make.rng() % tree.size()));
       m.erase(it.id().id);
       tree.erase(it);
     }
     if (built) CHECK(agrees(tree, m, &why));
-    const std::vector<Disk> c = small(8000);
+    const std::vector<Disk> c = small(std::max(1000, scaled(8000)));
     const int lanes_before = lanes_seen::count;
     const std::vector<std::size_t> kept = tree.insert_disjoint(c, 2);
     CHECK(lanes_seen::count > lanes_before);
