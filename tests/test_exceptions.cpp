@@ -351,17 +351,17 @@ int trials() { return std::max(2, scaled(8)); }
 // insert
 
 template <class T> void insert_case() {
-  // Sorted inserts: at least 8, and on until some insert met a fault in
-  // a rebalance (a scapegoat rebuild; a wide tree's 8 children take more
-  // inserts to unbalance, how many depending on the scene).
-  const int kSortedSteps = 8, kSortedMax = 400;
+  // Sorted inserts: trials() of them, and on until some insert met a fault
+  // in a rebalance (a scapegoat rebuild; a wide tree's 8 children take more
+  // inserts to unbalance).
+  const int kSortedMax = 400;
   std::mt19937 rng(base_seed());
   long splits = 0, absorbed = 0, empty = 0;
   for (const Config &c : configs()) {
     for (int sorted = 0; sorted < 2; ++sorted) {
       note(config_name(c));
       Subject<T> base = make_subject<T>(rng, tree_size(), c.split, c.depth, c.margin, c.sah, sorted == 1);
-      for (int t = 0, steps = sorted ? std::max(kSortedSteps, trials()) : trials();
+      for (int t = 0, steps = trials();
            t < steps || (sorted && absorbed == 0 && t < kSortedMax); ++t) {
         // Sorted subjects take shapes past the right end: the lopsided
         // growth that triggers scapegoat rebuilds. Past the first steps,
