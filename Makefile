@@ -126,10 +126,10 @@ $(BUILD)/check:
 # and the fuzzer (clang++ only). tests/run.sh builds them all at once with
 # -j$(JOBS) -k, then runs the layers.
 # (Longest compiles first, so that -j ends on short ones. tests/run.sh runs
-# two makes: test-build-longest, bvh.out and the unit suites, which are also
-# what the valgrind layer runs, so that the layer starts beside the second
-# make, of everything else.)
-LONGEST := bvh.out $(BUILD)/test_units $(BUILD)/test_disjoint $(BUILD)/test_exceptions $(TESTS)
+# two makes: test-build-longest, bvh.out and the unit suites that the
+# valgrind layer runs (test_names is not one of them), so that the layer
+# starts beside the second make, of everything else.)
+LONGEST := bvh.out $(BUILD)/test_units $(BUILD)/test_disjoint $(BUILD)/test_exceptions $(BUILD)/test_lazy_handles
 test-build-longest: $(LONGEST)
 test-build-san: $(SAN_TESTS)
 test-build-gcc: $(TESTS) $(TSAN_TESTS) bvh.out $(ASSERT_TESTS) $(EXAMPLES)
