@@ -15,14 +15,21 @@ UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions la
 # make test builds six of the suites as one program, build/test_units
 # (tests/units.cpp: each suite in a namespace of its own, run as
 # build/test_units SUITE), so that the trees they share compile once per
-# flavour: about 40% less code than six programs. The other four stay
-# programs of their own: their builds define macros that change bvh.h
-# (disjoint, lazy_handles, names) or replace operator new (exceptions).
-# (make build/test_bvh still builds one suite alone; make check does.)
+# flavour: about 40% less code than six programs. The two suites of
+# insert_disjoint's parallel steps, which lower its thresholds
+# (tests/lanes_probe.h), are one program too, build/test_lanes
+# (tests/lanes.cpp: build/test_lanes disjoint, build/test_lanes
+# lazy_handles). The other two stay programs of their own: their builds
+# define macros that change bvh.h (names) or replace operator new
+# (exceptions). (make build/test_bvh still builds one suite alone; make
+# check does.)
 UNITY := bvh dynamic moving intersect threads parse
-SOLO := names disjoint exceptions lazy_handles
-UNITY_SOURCES := tests/units.cpp $(UNITY:%=tests/test_%.cpp) tests/check.h tests/scenes.h $(HEADERS)
-TESTS := $(BUILD)/test_units $(SOLO:%=$(BUILD)/test_%)
+LANES := disjoint lazy_handles
+SOLO := names exceptions
+TEST_HEADERS := tests/check.h tests/scenes.h tests/lanes_probe.h
+UNITY_SOURCES := tests/units.cpp $(UNITY:%=tests/test_%.cpp) $(TEST_HEADERS) $(HEADERS)
+LANES_SOURCES := tests/lanes.cpp $(LANES:%=tests/test_%.cpp) $(TEST_HEADERS) $(HEADERS)
+TESTS := $(BUILD)/test_units $(BUILD)/test_lanes $(SOLO:%=$(BUILD)/test_%)
 # Every unit test and the CLI under AddressSanitizer + UBSan, compiled by
 # SAN_CXX. (-g1: the line tables, for the reports' file:line; full -g takes
 # a fifth longer to compile. The ThreadSanitizer builds and the fuzzer too.)
@@ -36,20 +43,20 @@ TESTS := $(BUILD)/test_units $(SOLO:%=$(BUILD)/test_%)
 # the reader's fallback for a missing floating-point from_chars), and clang++
 # compiles them in about half g++'s time.
 SAN_CXX ?= $(CXX)
-SAN_TESTS := $(BUILD)/test_units_san $(SOLO:%=$(BUILD)/test_%_san) $(BUILD)/bvh_san.out
+SAN_TESTS := $(BUILD)/test_units_san $(BUILD)/test_lanes_san $(SOLO:%=$(BUILD)/test_%_san) $(BUILD)/bvh_san.out
 # The portable build: the sanitizer build of the unit program above is also
 # the one under -std=c++20 (libc++'s C++20 library with clang++, the
 # iterator's concept), with -DBVH_NO_SIMD (collision()'s and the nodes'
 # scalar fallback instead of SSE2) and -DBVH_NO_HUGE_PAGES (std::allocator
 # for a build's items, whose bounds ASan then sees). The default build tests
-# SSE2 and the huge-page arrays under C++17, and under ASan the solo suites
-# (test_disjoint_san, test_exceptions_san, ...) do too. g++'s C++20 with
+# SSE2 and the huge-page arrays under C++17, and under ASan the other
+# programs (test_lanes_san, test_exceptions_san, ...) do too. g++'s C++20 with
 # libstdc++: test_exceptions's default build.
 UNITS_SAN_FLAGS ?= -std=c++20 -DBVH_NO_SIMD -DBVH_NO_HUGE_PAGES
 # BVH_ASSERT's misuse checks: on (the default build), off (-DNDEBUG), and a
 # user's own handler that throws; construct()'s threads under ThreadSanitizer.
 ASSERT_TESTS := $(BUILD)/test_asserts $(BUILD)/test_asserts_ndebug $(BUILD)/test_asserts_throwing
-TSAN_TESTS := $(BUILD)/test_threads_tsan $(BUILD)/test_disjoint_tsan $(BUILD)/test_lazy_handles_tsan
+TSAN_TESTS := $(BUILD)/test_threads_tsan $(BUILD)/test_lanes_tsan
 # examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
@@ -66,13 +73,13 @@ bvh.out: main.cpp $(HEADERS)
 # build (CXXFLAGS) is bvh.out's, whose output the golden, command-line,
 # course-framework and browser layers check.
 UNIT_CXXFLAGS ?= $(CHECK_CXXFLAGS)
-$(BUILD)/test_%: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+$(BUILD)/test_%: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -I. -Itests $< -o $@
 
-$(BUILD)/test_%_san: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+$(BUILD)/test_%_san: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 	$(SAN_CXX) $(SANITIZE) -I. -Itests $< -o $@
 
-$(BUILD)/test_exceptions: tests/test_exceptions.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+$(BUILD)/test_exceptions: tests/test_exceptions.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -std=c++20 -I. -Itests $< -o $@
 
 $(BUILD)/test_units: $(UNITY_SOURCES) | $(BUILD)
@@ -80,6 +87,12 @@ $(BUILD)/test_units: $(UNITY_SOURCES) | $(BUILD)
 
 $(BUILD)/test_units_san: $(UNITY_SOURCES) | $(BUILD)
 	$(SAN_CXX) $(SANITIZE) $(UNITS_SAN_FLAGS) -I. -Itests $< -o $@
+
+$(BUILD)/test_lanes: $(LANES_SOURCES) | $(BUILD)
+	$(CXX) $(UNIT_CXXFLAGS) -I. -Itests $< -o $@
+
+$(BUILD)/test_lanes_san: $(LANES_SOURCES) | $(BUILD)
+	$(SAN_CXX) $(SANITIZE) -I. -Itests $< -o $@
 
 # The sanitized CLI runs the command-line cases, all at the course's width
 # 3: -DBVH_CLI_COURSE_WIDTH_ONLY compiles that width alone (half the
@@ -107,11 +120,11 @@ $(BUILD)/test_asserts_throwing: tests/test_asserts.cpp $(HEADERS) | $(BUILD)
 # and runs these in about 60% of g++'s time.)
 TSAN_CXX ?= $(CXX)
 TSAN_FLAGS := -std=c++17 -O0 -g1 -Wall -Wextra -pedantic -fsanitize=thread
-$(BUILD)/test_%_tsan: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+$(BUILD)/test_%_tsan: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 	$(TSAN_CXX) $(TSAN_FLAGS) -I. -Itests $< -o $@
 # (insert_disjoint's lanes under TSan from two threads on every tree: the
 # override BVH_DISJOINT_LANES_THREADS, which no other build sets)
-$(BUILD)/test_disjoint_tsan: tests/test_disjoint.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)
+$(BUILD)/test_lanes_tsan: $(LANES_SOURCES) | $(BUILD)
 	$(TSAN_CXX) $(TSAN_FLAGS) -DBVH_DISJOINT_LANES_THREADS=2 -I. -Itests $< -o $@
 
 $(BUILD)/example_%: examples/%.cpp $(HEADERS) | $(BUILD)
@@ -129,7 +142,7 @@ $(BUILD)/check:
 # two makes: test-build-longest, bvh.out and the unit suites that the
 # valgrind layer runs (test_names is not one of them), so that the layer
 # starts beside the second make, of everything else.)
-LONGEST := bvh.out $(BUILD)/test_units $(BUILD)/test_disjoint $(BUILD)/test_exceptions $(BUILD)/test_lazy_handles
+LONGEST := bvh.out $(BUILD)/test_units $(BUILD)/test_lanes $(BUILD)/test_exceptions
 test-build-longest: $(LONGEST)
 test-build-san: $(SAN_TESTS)
 test-build-gcc: $(TESTS) $(TSAN_TESTS) bvh.out $(ASSERT_TESTS) $(EXAMPLES)
@@ -153,7 +166,7 @@ test: | $(BUILD)
 CHECK_CXXFLAGS ?= -std=c++17 -Og -Wall -Wextra -pedantic
 CHECK_SCALE ?= 0.5
 CHECK_TESTS := $(UNITS:%=$(BUILD)/check/test_%)
-$(BUILD)/check/test_%: tests/test_%.cpp tests/check.h tests/scenes.h $(HEADERS) | $(BUILD)/check
+$(BUILD)/check/test_%: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)/check
 	$(CXX) $(CHECK_CXXFLAGS) -I. -Itests $< -o $@
 $(BUILD)/check/test_%.out: $(BUILD)/check/test_%
 	@BVH_TEST_SCALE=$(CHECK_SCALE) $< >$@.tmp 2>&1; echo "exit status $$?" >>$@.tmp; mv $@.tmp $@

@@ -211,10 +211,10 @@ unit_tests() {
   run_suite test_intersect "$BUILD/test_units" intersect
   run_suite test_dynamic "$BUILD/test_units" dynamic
   run_suite test_moving "$BUILD/test_units" moving
-  run_suite test_lazy_handles "$BUILD/test_lazy_handles"
+  run_suite test_lazy_handles "$BUILD/test_lanes" lazy_handles
   run_suite test_parse "$BUILD/test_units" parse
   run_suite test_names "$BUILD/test_names"
-  run_suite test_disjoint "$BUILD/test_disjoint"
+  run_suite test_disjoint "$BUILD/test_lanes" disjoint
   # Fault injection: every mutating operation at its k-th copy and allocation (issue 21).
   run_suite test_exceptions "$BUILD/test_exceptions"
   # (collision()'s scalar fallback, BVH_NO_SIMD: the sanitizer layer's build.)
@@ -257,10 +257,10 @@ sanitizers() {
   BVH_TEST_SCALE=0.1 run_suite test_intersect$u "$BUILD/test_units_san" intersect
   BVH_TEST_SCALE=0.3 run_suite test_dynamic$u "$BUILD/test_units_san" dynamic
   BVH_TEST_SCALE=0.1 run_suite test_moving$u "$BUILD/test_units_san" moving
-  BVH_TEST_SCALE=0.05 run_suite test_lazy_handles$s "$BUILD/test_lazy_handles_san"
+  BVH_TEST_SCALE=0.05 run_suite test_lazy_handles$s "$BUILD/test_lanes_san" lazy_handles
   BVH_TEST_SCALE=0.1 run_suite test_parse$u "$BUILD/test_units_san" parse
   run_suite test_names$s "$BUILD/test_names_san"
-  BVH_TEST_SCALE=0.05 run_suite test_disjoint$s "$BUILD/test_disjoint_san"
+  BVH_TEST_SCALE=0.05 run_suite test_disjoint$s "$BUILD/test_lanes_san" disjoint
   BVH_TEST_SCALE=0.2 run_suite test_exceptions$s "$BUILD/test_exceptions_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
@@ -306,8 +306,8 @@ asserts() {
 # queries from several threads) under ThreadSanitizer: a data race fails it.
 tsan() {
   BVH_TEST_SCALE=0.25 run_suite test_threads_under_thread_sanitizer "$BUILD/test_threads_tsan"
-  BVH_TEST_SCALE=0.03 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_disjoint_tsan"
-  BVH_TEST_SCALE=0.05 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lazy_handles_tsan"
+  BVH_TEST_SCALE=0.03 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_lanes_tsan" disjoint
+  BVH_TEST_SCALE=0.05 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lanes_tsan" lazy_handles
 }
 
 # bvh.h alone in the course's framework (stand-ins written from the spec),
@@ -503,9 +503,9 @@ valgrind_layer() {
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_units" intersect
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_units" dynamic
   BVH_TEST_SCALE=0.15 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_units" moving
-  BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lazy_handles"
+  BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lanes" lazy_handles
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_units" parse
-  BVH_TEST_SCALE=0.05 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_disjoint"
+  BVH_TEST_SCALE=0.05 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_lanes" disjoint
   # (nouserintercepts: the test's own operator new, which injects the faults, stays in place)
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_exceptions "${VG[@]}" --soname-synonyms=somalloc=nouserintercepts \
     "$BUILD/test_exceptions"

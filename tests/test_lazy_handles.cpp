@@ -18,17 +18,9 @@
 #include <thread>
 #include <vector>
 
-// Counts insert_disjoint's parallel inserts (step 4 laps: lanes ran).
-namespace lanes_seen {
-inline std::atomic<int> count{0};
-inline void lap(int step, double) {
-  if (step == 4) ++count;
-}
-} // namespace lanes_seen
-#define BVH_DISJOINT_PROFILE lanes_seen::lap
-// Lanes from trees of 128 shapes (bvh.h's default: 4,096), so that the
-// scaled-down runs (valgrind's, the sanitizers') take them on small trees.
-#define BVH_DISJOINT_LANES_MIN 128
+// insert_disjoint's thresholds lowered (lanes from trees of 128 shapes),
+// and the probe of its steps: the lanes' test checks that they ran.
+#include "lanes_probe.h"
 
 #include "bvh.h"
 #include "check.h"
@@ -336,9 +328,9 @@ TEST(lanes_give_the_loops_ids_with_and_without_the_table) {
     }
     if (built) CHECK(agrees(tree, m, &why));
     const std::vector<Disk> c = small(std::max(1000, scaled(8000)));
-    const int lanes_before = lanes_seen::count;
+    const std::size_t lanes_before = lanes_probe::laps();
     const std::vector<std::size_t> kept = tree.insert_disjoint(c, 2);
-    CHECK(lanes_seen::count > lanes_before);
+    CHECK(lanes_probe::laps() > lanes_before);
     CHECK(kept == model_disjoint(m, c));
     CHECK_EQ(tree.memory().handles == 0, built == 0);
     CHECK(agrees(tree, m, &why));

@@ -12,14 +12,13 @@
 // runs one suite as its own program would (its main: the seed line, its
 // cases, "N passed, M failed").
 //
-// The suites whose build defines macros that change bvh.h (test_disjoint,
-// test_lazy_handles, test_names) or that replace operator new
-// (test_exceptions) stay programs of their own.
+// The suites whose build defines macros that change bvh.h or that replace
+// operator new stay apart: test_disjoint and test_lazy_handles (one program
+// of their own, tests/lanes.cpp), test_names and test_exceptions.
 
 // Collision searches decide disks from their leaves' codes at every size
 // here (bvh.h's default starts at 4 MB of disks), so that the model tests
-// check those decisions (test_exceptions, test_lazy_handles and test_names
-// keep the default).
+// check those decisions (test_exceptions and test_names keep the default).
 #define BVH_DISK_CODES_MIN_BYTES 0
 
 // Every header a suite includes, here first, at global scope: inside the
