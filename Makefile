@@ -157,7 +157,7 @@ test-build: test-build-longest $(BUILD)/bvh_san.out test-build-san test-build-gc
 test: | $(BUILD)
 	+@MAKE="$(MAKE)" JOBS="$(JOBS)" CXX="$(CXX)" COURSE_DATA="$(COURSE_DATA)" BUILD="$(BUILD)" bash tests/run.sh
 
-# make check: the quick layer (under a minute from scratch on 2 cores):
+# make check: the quick layer (under 2 minutes from scratch on 2 cores):
 # bvh.out, the unit tests built at -Og into $(BUILD)/check (two fifths of the
 # compile time of -O2) and run at CHECK_SCALE of their random rounds, and the golden
 # stdout on the course's scenes and ours. Each unit test runs as soon as it
