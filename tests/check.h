@@ -15,6 +15,7 @@
 #define BVH_TESTS_CHECK_H
 
 #include <chrono>
+#include <cstddef>
 #include <cstdio>
 #include <cstring>
 #include <functional>
@@ -134,5 +135,28 @@ inline int run_all_tests(int argc, char **argv) {
   std::cout << passed << " passed, " << failed << " failed" << std::endl;
   return failed == 0 && passed > 0 ? 0 : 1;
 }
+
+namespace check {
+/// One suite of a program that compiles several (tests/units.cpp,
+/// tests/lanes.cpp): its name and its own main.
+struct Suite {
+  const char *name;
+  int (*run)(int, char **);
+};
+/// Such a program's main: `PROGRAM SUITE [CASE...]` runs one suite as its
+/// own program would (its main sees PROGRAM [CASE...]).
+template <std::size_t N> int run_suite(int argc, char **argv, const Suite (&suites)[N]) {
+  for (const Suite &s : suites)
+    if (argc > 1 && std::strcmp(argv[1], s.name) == 0) {
+      selected_suite() = s.name;
+      argv[1] = argv[0];
+      return s.run(argc - 1, argv + 1);
+    }
+  std::cerr << "usage: " << argv[0] << " SUITE [CASE...]; the suites:";
+  for (const Suite &s : suites) std::cerr << " " << s.name;
+  std::cerr << "\n";
+  return 2;
+}
+} // namespace check
 
 #endif // BVH_TESTS_CHECK_H

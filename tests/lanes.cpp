@@ -49,22 +49,9 @@ namespace suite_lazy_handles {
 #undef main
 
 int main(int argc, char **argv) {
-  struct Suite {
-    const char *name;
-    int (*run)(int, char **);
-  };
-  static const Suite suites[] = {
+  static const check::Suite suites[] = {
       {"disjoint", &suite_disjoint::suite_main},
       {"lazy_handles", &suite_lazy_handles::suite_main},
   };
-  for (const Suite &s : suites)
-    if (argc > 1 && std::strcmp(argv[1], s.name) == 0) {
-      check::selected_suite() = s.name;
-      argv[1] = argv[0]; // the suite's main sees its own command line: PROGRAM [CASE...]
-      return s.run(argc - 1, argv + 1);
-    }
-  std::cerr << "usage: " << argv[0] << " SUITE [CASE...]; the suites:";
-  for (const Suite &s : suites) std::cerr << " " << s.name;
-  std::cerr << "\n";
-  return 2;
+  return check::run_suite(argc, argv, suites);
 }

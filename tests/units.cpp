@@ -93,11 +93,7 @@ namespace suite_parse {
 #undef main
 
 int main(int argc, char **argv) {
-  struct Suite {
-    const char *name;
-    int (*run)(int, char **);
-  };
-  static const Suite suites[] = {
+  static const check::Suite suites[] = {
       {"bvh", &suite_bvh::suite_main},
       {"dynamic", &suite_dynamic::suite_main},
       {"moving", &suite_moving::suite_main},
@@ -105,14 +101,5 @@ int main(int argc, char **argv) {
       {"threads", &suite_threads::suite_main},
       {"parse", &suite_parse::suite_main},
   };
-  for (const Suite &s : suites)
-    if (argc > 1 && std::strcmp(argv[1], s.name) == 0) {
-      check::selected_suite() = s.name;
-      argv[1] = argv[0]; // the suite's main sees its own command line: PROGRAM [CASE...]
-      return s.run(argc - 1, argv + 1);
-    }
-  std::cerr << "usage: " << argv[0] << " SUITE [CASE...]; the suites:";
-  for (const Suite &s : suites) std::cerr << " " << s.name;
-  std::cerr << "\n";
-  return 2;
+  return check::run_suite(argc, argv, suites);
 }
