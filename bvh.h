@@ -955,11 +955,11 @@ template <int W> struct Node {
   }
   /// Leaf: writes shape i's code box from its box `b`.
   void code(int i, const Box &b) { set_codes(i, codes_of(b, frame())); }
-  /// Leaf: true when shape i's code box holds what code() makes of `b`.
-  bool code_holds(int i, const Box &b) const {
-    const std::uint32_t c = codes_of(b, frame());
-    return row(0)[i] <= (c & 255u) && row(1)[i] <= (c >> 8 & 255u) && row(2)[i] >= (c >> 16 & 255u) &&
-           row(3)[i] >= (c >> 24);
+  /// Leaf: shape i's codes, as codes_of() returns them.
+  std::uint32_t codes(int i) const {
+    std::uint32_t c = 0;
+    for (int r = 0; r < 4; ++r) c |= std::uint32_t(row(r)[i]) << (8 * r);
+    return c;
   }
   /// Leaf: shape i is gone and the ones after it moved down one place:
   /// their codes move with them.
@@ -2241,6 +2241,29 @@ enum class BuildRule {
 
 template <class T, class Tr> struct BuildScratch;
 
+/// The sizes from which a tree takes the paths that pay only when it is
+/// large (BVH::Tuning, set_tuning()). They change speed only, never an
+/// answer: each path gives what the plain one gives.
+struct Tuning {
+  /// Stored shapes from which collision(), collisions() and query(shape)
+  /// decide disks from their leaves' codes (kDisksFromCodes; default:
+  /// BVH_DISK_CODES_MIN_BYTES of shapes). 0: at every size.
+  std::size_t disk_codes_min_shapes;
+  /// Stored shapes from which insert_disjoint's step 1 interleaves its
+  /// searches, and one thread decides in batches (default
+  /// BVH_DISJOINT_INTERLEAVE_MIN).
+  std::size_t disjoint_interleave_min;
+  /// Stored shapes from which insert_disjoint's step 4 inserts on every
+  /// thread, the lanes (default BVH_DISJOINT_LANES_MIN).
+  std::size_t disjoint_lanes_min;
+  /// A batch's survivors from which insert_disjoint's step 2 sweeps on
+  /// every thread (default BVH_DISJOINT_SWEEP_MIN).
+  std::size_t disjoint_sweep_min;
+};
+/// A tree of T's Tuning until set_tuning() (section 8b, after the macros
+/// that set it).
+template <class T> Tuning default_tuning() noexcept;
+
 /// The state every operation shares: the nodes, the leaves' shapes and
 /// ids, the root, and the parameters of the tree. Sections 5 to 8 work on
 /// it; the facade BVH<T> owns one. Each part keeps its own invariants
@@ -2259,6 +2282,7 @@ template <class T, class Tr, int W> struct Core {
   BuildRule rule = BuildRule::course;
   unsigned build_threads = 0; ///< 0: hardware concurrency
   double margin = 0;          ///< leaves' boxes are their shapes' grown by this
+  Tuning tuning = default_tuning<T>(); ///< sizes from which the paths for large trees run
   Scratch<BuildScratch<T, Tr>> scratch;
 
   Core(Tr traits_, int split_threshold_, int depth_limit_)
@@ -2276,6 +2300,7 @@ template <class T, class Tr, int W> struct Core {
     std::swap(rule, o.rule);
     std::swap(build_threads, o.build_threads);
     std::swap(margin, o.margin);
+    std::swap(tuning, o.tuning);
   }
 
   /// Drops every node and shape but keeps the ids.
@@ -2404,8 +2429,10 @@ template <class T, class Tr, int W> void make_summary(Core<T, Tr, W> &core, int 
   }
 }
 
-/// Leaf n's summary after its last shape, of box `b` (or a box holding
-/// it), was appended: coded too if it fits the frame, else make_summary().
+/// Leaf n's summary after its last shape, whose own box is `b`, was
+/// appended: coded too if it fits the frame, else make_summary(). `b` is
+/// box_of() the shape, never a box holding it (a fat one): the disk
+/// decisions read a code as the disk inscribed in it (disk_decision).
 template <class T, class Tr, int W> BVH_ALWAYS_INLINE void extend_summary(Core<T, Tr, W> &core, int n, const Box &b) {
   if constexpr (Node<W>::kCoded > 0) {
     Node<W> &leaf = core.nodes.node(n);
@@ -3626,14 +3653,14 @@ void undo_descent(Core<T, Tr, W> &core, int last, int stop, const Box *leaf_box)
   }
 }
 
-/// insert_below()'s second half: `shape` (its box `box`, its id `id`)
-/// goes into leaf n, whose count and box the descent from `top` has
+/// insert_below()'s second half: `shape` (its own box `own`, not grown
+/// by the margin: the leaf's summary codes it; its id `id`) goes into leaf n, whose count and box the descent from `top` has
 /// already raised (its box was `leaf_box`), which splits by the build rule
 /// when it then holds more than split_threshold shapes above depth_limit.
 /// Returns the node the shape went to. Strong: if it throws, the counts
 /// and boxes from `top` down are undone.
 template <class T, class Tr, int W>
-BVH_ALWAYS_INLINE int insert_at_leaf(Core<T, Tr, W> &core, int top, int n, const Box &leaf_box, const Box &box, const T &shape,
+BVH_ALWAYS_INLINE int insert_at_leaf(Core<T, Tr, W> &core, int top, int n, const Box &leaf_box, const Box &own, const T &shape,
                                      std::uint32_t id) {
   NodeStore<W> &nodes = core.nodes;
   try {
@@ -3654,7 +3681,7 @@ BVH_ALWAYS_INLINE int insert_at_leaf(Core<T, Tr, W> &core, int top, int n, const
       }
     } else {
       core.leaves.push(nodes.node(n), n, shape, id);
-      extend_summary(core, n, box);
+      extend_summary(core, n, own);
     }
   } catch (...) {
     undo_descent(core, n, nodes.info(top).parent, &leaf_box);
@@ -3664,8 +3691,8 @@ BVH_ALWAYS_INLINE int insert_at_leaf(Core<T, Tr, W> &core, int top, int n, const
 }
 
 /// The descent of insert_unbalanced() from node `top` down: by least area
-/// growth (choose_child), adding `box` (the shape's, fattened) to every
-/// box and the shape to every count on the way, then adding the shape to
+/// growth (choose_child), adding the shape's own box `own` grown by the
+/// margin to every box and the shape to every count on the way, then adding the shape to
 /// the leaf reached (insert_at_leaf). Returns the node the shape went to
 /// (the leaf, or the subtree its split made); nothing above `top` is read
 /// or written (section 8b runs it on several subtrees at once). Strong: if
@@ -3676,9 +3703,10 @@ BVH_ALWAYS_INLINE int insert_at_leaf(Core<T, Tr, W> &core, int top, int n, const
 /// `top` down to the leaf's parent, read on the way down (the counts above
 /// the leaf are final there): insert_scapegoat() completes it.
 template <class T, class Tr, int W>
-BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &box, const T &shape, std::uint32_t id,
+BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &own, const T &shape, std::uint32_t id,
                                    int *lopsided_above = nullptr) {
   NodeStore<W> &nodes = core.nodes;
+  const Box box = core.fat(own);
   const std::size_t smallest = min_rebuild(core);
   int n = top, above = -1, prev = -1;
   std::size_t prev_count = 0;
@@ -3697,7 +3725,7 @@ BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &box
     n = choose_child(nodes.node(n), box);
   }
   if (lopsided_above) *lopsided_above = above;
-  return insert_at_leaf(core, top, n, leaf_box, box, shape, id);
+  return insert_at_leaf(core, top, n, leaf_box, own, shape, id);
 }
 
 /// insert_shape() without its rebalance: insert_below() from the root (or
@@ -3707,24 +3735,24 @@ template <class T, class Tr, int W>
 BVH_ALWAYS_INLINE int insert_unbalanced(Core<T, Tr, W> &core, const T &shape, std::uint32_t id, int *lopsided_above = nullptr) {
   if (lopsided_above) *lopsided_above = -1;
   NodeStore<W> &nodes = core.nodes;
-  const Box box = core.fat(box_of(core.traits, shape));
+  const Box own = box_of(core.traits, shape);
   if (core.root < 0) {
     const int root = core.new_node(0, -1, 0);
     try {
       core.leaves.push(nodes.node(root), root, shape, id);
-      extend_summary(core, root, box);
+      extend_summary(core, root, own);
     } catch (...) {
       core.free_node(root);
       throw;
     }
     core.root = root;
-    // (fitted, not `box`: a NaN side stays out of a box, as in every union)
+    // (fitted, not `own`: a NaN side stays out of a box, as in every union)
     nodes.set_box(root, core.fitted_box(root));
     nodes.info(root).count = 1;
     core.size = 1;
     return root;
   }
-  const int n = insert_below(core, core.root, box, shape, id, lopsided_above);
+  const int n = insert_below(core, core.root, own, shape, id, lopsided_above);
   ++core.size;
   return n;
 }
@@ -4107,10 +4135,11 @@ BVH_ALWAYS_INLINE bool disk_codes_hit(const Node<W> &node, int n, const Box &box
 /// disks).
 template <class Tr, int W> constexpr bool kDisksFromCodes = Node<W>::kCoded > 0 && InscribedDisks<Tr>::value;
 
-/// The stored shapes' bytes from which they do: a decision costs more
-/// than reading a disk the caches hold, and saves a miss only when the
-/// disks are many more than a core's own caches keep. Tests define it
-/// lower, as BVH_DISJOINT_INTERLEAVE_MIN.
+/// The stored shapes' bytes from which they do by default
+/// (Tuning::disk_codes_min_shapes): a decision costs more than reading a
+/// disk the caches hold, and saves a miss only when the disks are many
+/// more than a core's own caches keep. Defining it before bvh.h changes
+/// the default only; set_tuning() changes a tree's.
 #ifndef BVH_DISK_CODES_MIN_BYTES
 #define BVH_DISK_CODES_MIN_BYTES (std::size_t(4) << 20)
 #endif
@@ -4118,7 +4147,7 @@ template <class Tr, int W> constexpr bool kDisksFromCodes = Node<W>::kCoded > 0 
 /// when core's disks are decided from codes.
 template <class T, class Tr, int W> BVH_ALWAYS_INLINE DiskProbe disk_probe(const Core<T, Tr, W> &core, const Box &box) {
   if constexpr (kDisksFromCodes<Tr, W>)
-    if (core.size >= std::size_t(BVH_DISK_CODES_MIN_BYTES) / sizeof(T)) return DiskProbe::of(box);
+    if (core.size >= core.tuning.disk_codes_min_shapes) return DiskProbe::of(box);
   return DiskProbe{};
 }
 
@@ -4858,9 +4887,21 @@ template <class T, class Tr, int W> bool validate_node(const Core<T, Tr, W> &cor
     count = shapes.size();
     const int coded = node.coded();
     if (coded > int(count) || coded > Node<W>::kCoded) return why = "summary of more shapes than the leaf holds", false;
-    for (int i = 0; i < coded; ++i)
-      if (!node.code_holds(i, box_of(core.traits, shapes[std::size_t(i)])))
-        return why = "shape " + std::to_string(i) + "'s summary code does not hold its box", false;
+    // Exactly its own box's codes, not a box holding it: a disk's code
+    // box is read back as the disk itself (disk_decision).
+    for (int i = 0; i < coded; ++i) {
+      const std::uint32_t want = Node<W>::codes_of(box_of(core.traits, shapes[std::size_t(i)]), node.frame());
+      if (node.codes(i) != want) {
+        const auto sides = [](std::uint32_t c) {
+          std::string t;
+          for (int r = 0; r < 4; ++r) t += (r ? " " : "") + std::to_string(c >> (8 * r) & 255u);
+          return t;
+        };
+        return why = "shape " + std::to_string(i) + "'s summary codes (low x, low y, high x, high y) are " +
+                     sides(node.codes(i)) + ", not its own box's " + sides(want),
+               false;
+      }
+    }
     const std::uint32_t *ids = core.leaves.ids(node);
     for (std::size_t i = 0; i < shapes.size() && core.leaves.located(); ++i)
       if (!core.leaves.contains(ids[i]) || core.leaves.locate(ids[i]).leaf != n ||
@@ -4991,14 +5032,16 @@ template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, st
 #define BVH_DISJOINT_LANES_THREADS 0
 #endif
 /// The size of tree from which insert_disjoint's step 4 inserts on every
-/// thread (the lanes); a smaller tree is not worth splitting. Tests define
-/// it lower before bvh.h, so that small trees (and their runs under
-/// valgrind and the sanitizers) take the lanes too.
+/// thread (the lanes) by default (Tuning::disjoint_lanes_min); a smaller
+/// tree is not worth splitting. Tests define it lower before bvh.h, so
+/// that small trees (and their runs under valgrind and the sanitizers)
+/// take the lanes too; set_tuning() changes one tree's.
 #ifndef BVH_DISJOINT_LANES_MIN
 #define BVH_DISJOINT_LANES_MIN 4096
 #endif
 /// The number of a batch's survivors from which step 2's sweep runs on
-/// every thread (lowered by the tests, as BVH_DISJOINT_LANES_MIN).
+/// every thread by default (Tuning::disjoint_sweep_min; lowered by the
+/// tests, as BVH_DISJOINT_LANES_MIN).
 #ifndef BVH_DISJOINT_SWEEP_MIN
 #define BVH_DISJOINT_SWEEP_MIN 4096
 #endif
@@ -5007,10 +5050,21 @@ template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, st
 /// searches (collides_each), and from which one thread decides in batches
 /// at all: on a smaller tree, which the caches hold, the interleaving and
 /// the batches cost more than they save, and one thread runs the loop
-/// itself. Tests define it lower, as BVH_DISJOINT_LANES_MIN.
+/// itself. The default of Tuning::disjoint_interleave_min; tests define it
+/// lower, as BVH_DISJOINT_LANES_MIN.
 #ifndef BVH_DISJOINT_INTERLEAVE_MIN
 #define BVH_DISJOINT_INTERLEAVE_MIN 32768
 #endif
+
+/// The macros above and BVH_DISK_CODES_MIN_BYTES set only these defaults.
+template <class T> Tuning default_tuning() noexcept {
+  Tuning t;
+  t.disk_codes_min_shapes = std::size_t(BVH_DISK_CODES_MIN_BYTES) / sizeof(T);
+  t.disjoint_interleave_min = BVH_DISJOINT_INTERLEAVE_MIN;
+  t.disjoint_lanes_min = BVH_DISJOINT_LANES_MIN;
+  t.disjoint_sweep_min = BVH_DISJOINT_SWEEP_MIN;
+  return t;
+}
 
 /// Step timings of insert_disjoint, for bench/bench.cpp's serial-fraction
 /// figures: compiled in only when BVH_DISJOINT_PROFILE names a function
@@ -5197,14 +5251,13 @@ private:
 /// Step 2: the pairs (earlier, later) of survivors, by rank, that
 /// intersect, sorted by the later one. The sweep sorts the boxes by their
 /// left side; each box then meets only the boxes after it that start before
-/// its right side ends, scanned in chunks (on the crew from kCrewSweep
+/// its right side ends, scanned in chunks (on the crew from `crew_min`
 /// survivors: below, waking it costs more than it saves).
 template <class T, class Tr>
 std::vector<std::pair<std::uint32_t, std::uint32_t>> surviving_pairs(const Tr &traits, const std::vector<T> &candidates,
                                                                     const std::vector<std::size_t> &survivors,
-                                                                    Crew &crew, unsigned threads,
+                                                                    Crew &crew, unsigned threads, std::size_t crew_min,
                                                                     DisjointClock &clock) {
-  constexpr std::size_t kCrewSweep = BVH_DISJOINT_SWEEP_MIN;
   std::vector<SweepBox> boxes(survivors.size());
   for (std::size_t r = 0; r < survivors.size(); ++r) {
     float f[4];
@@ -5245,7 +5298,7 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> surviving_pairs(const Tr &t
       }
     }
   };
-  if (boxes.size() >= kCrewSweep) {
+  if (boxes.size() >= crew_min) {
     crew.run(chunks, sweep);
     clock.lap(2);
   } else {
@@ -5339,7 +5392,7 @@ void insert_pipelined(Core<T, Tr, W> &core, const std::vector<T> &candidates, co
   constexpr int kPipe = 4;
   struct Cursor {
     std::size_t item;   // in keep
-    Box box;            // the shape's
+    Box box;            // the shape's own (at margin 0 also what it adds to boxes)
     int n;              // the node of its next step, or (at_leaf) the leaf it stepped at
     int depth;          // n's
     int prev, above;    // as in insert_below
@@ -5507,7 +5560,7 @@ template <int W> constexpr unsigned disjoint_lanes_threads(int split_threshold) 
 template <class T, class Tr, int W>
 void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
                      unsigned threads, Crew &crew, DisjointClock &clock, std::vector<std::size_t> &kept) {
-  constexpr std::size_t kLanesMin = BVH_DISJOINT_LANES_MIN; // a smaller tree: serially
+  const std::size_t lanes_min = core.tuning.disjoint_lanes_min; // a smaller tree: serially
   NodeStore<W> &nodes = core.nodes;
   const bool lanes_pay = threads >= disjoint_lanes_threads<W>(core.split_threshold);
   if (!lanes_pay && core.margin == 0 && core.root >= 0 && !nodes.node(core.root).is_leaf()) {
@@ -5518,7 +5571,7 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
   int depth = 0; // the frontier's: about 16 subtrees a thread
   for (std::size_t lanes = 1; lanes < 16 * std::size_t(threads); lanes *= std::size_t(W)) ++depth;
   for (std::size_t next = 0; next < keep.size();) {
-    if (!lanes_pay || core.margin != 0 || core.root < 0 || nodes.node(core.root).is_leaf() || core.size < kLanesMin ||
+    if (!lanes_pay || core.margin != 0 || core.root < 0 || nodes.node(core.root).is_leaf() || core.size < lanes_min ||
         keep.size() - next < 64) {
       insert_serially(core, candidates, keep, next, kept);
       clock.lap(3);
@@ -5610,7 +5663,7 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
           const T &shape = candidates[keep[i]];
           const int top = nodes.node(lane.parent).child(lane.child_index);
           int above;
-          const int n = insert_below(core, top, core.fat(box_of(core.traits, shape)), shape, ids[i - next], &above);
+          const int n = insert_below(core, top, box_of(core.traits, shape), shape, ids[i - next], &above);
           rebalance(core, insert_scapegoat(core, n, above, lane.parent), Cut::by_rule);
         } catch (...) {
           lane.error = std::current_exception();
@@ -5670,9 +5723,9 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
   std::vector<unsigned char> survivor_kept;
   KeptBoxes kept_boxes; // keep[i]'s box, rounded once
   DisjointClock clock;
-  const std::size_t kInterleaveMin = BVH_DISJOINT_INTERLEAVE_MIN;
+  const std::size_t interleave_min = core.tuning.disjoint_interleave_min;
   for (std::size_t start = 0; start < n;) {
-    if (serial && core.size < kInterleaveMin) { // the loop itself
+    if (serial && core.size < interleave_min) { // the loop itself
       decide_as_the_loop(core, candidates, start++, kept);
       continue;
     }
@@ -5682,7 +5735,7 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
       // 1. Against the tree as it stands (read only).
       hit.assign(m, 0);
       const std::size_t chunk = serial ? m : std::max<std::size_t>(1, std::min<std::size_t>(128, m / (4 * threads)));
-      const bool interleave = core.size >= kInterleaveMin;
+      const bool interleave = core.size >= interleave_min;
       auto query = [&](std::size_t k) {
         const std::size_t end = std::min(m, (k + 1) * chunk);
         if (interleave)
@@ -5713,7 +5766,7 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
           kept_boxes.push_back(b);
         }
       } else {
-        const auto pairs = surviving_pairs(core.traits, candidates, survivors, crew, threads, clock);
+        const auto pairs = surviving_pairs(core.traits, candidates, survivors, crew, threads, core.tuning.disjoint_sweep_min, clock);
         std::size_t p = 0;
         for (std::uint32_t r = 0; r < s; ++r) {
           bool free = true;
@@ -6221,6 +6274,22 @@ public:
   void set_margin(double m) noexcept { detail::set_margin(core_, m); }
   /// The margin of leaves' boxes (0 unless set_margin() said otherwise).
   double margin() const noexcept { return core_.margin; }
+
+  /// The sizes from which the tree takes the paths that pay only on large
+  /// trees (docs/library.txt, TUNING): they change speed, never an
+  /// answer. A tree starts with default_tuning(); copies and moves take
+  /// the source's.
+  using Tuning = detail::Tuning;
+  /// The defaults for T: disks decided from codes from 4 MB of shapes
+  /// (BVH_DISK_CODES_MIN_BYTES), insert_disjoint's interleaved searches
+  /// from 32,768 shapes, its lanes and parallel sweep from 4,096 (the
+  /// macros BVH_DISJOINT_INTERLEAVE_MIN, _LANES_MIN, _SWEEP_MIN; defining
+  /// one before bvh.h changes the default).
+  static Tuning default_tuning() noexcept { return detail::default_tuning<T>(); }
+  /// This tree's sizes from now on. Never throws; O(1).
+  void set_tuning(const Tuning &t) noexcept { core_.tuning = t; }
+  /// This tree's sizes.
+  const Tuning &tuning() const noexcept { return core_.tuning; }
 
   /// True iff some stored shape intersects `shape` (touching counts).
   /// Subtrees whose box misses the shape's box are never visited; the final
