@@ -176,11 +176,19 @@ template <int W> void validate_catches(unsigned seed) {
     c.nodes.set_box(leaf, b);
   });
   expect("size() one too many", "size() disagrees", [&](Core &c) { c.size += 1; });
-  if (bvh::detail::Node<W>::kCoded > 0 && sound.nodes.node(leaf).coded() > 0)
-    expect("a leaf summary's code", "summary code does not hold", [&](Core &c) {
+  if (bvh::detail::Node<W>::kCoded > 0 && sound.nodes.node(leaf).coded() > 0) {
+    expect("a leaf summary's code", "not its own box's", [&](Core &c) {
       c.nodes.node(leaf).set_codes(0, 0); // the code box of one corner
     });
-  else
+    // A code box that holds the shape's box but is larger (as one made from
+    // a margin-widened box is): queries would read a disk there as larger.
+    expect("a leaf summary's code one step too wide", "not its own box's", [&](Core &c) {
+      bvh::detail::Node<W> &node = c.nodes.node(leaf);
+      const std::uint32_t k = node.codes(0);
+      const std::uint32_t lx = k & 255u, hx = k >> 16 & 255u;
+      node.set_codes(0, lx > 0 ? k - 1 : hx < 255 ? k + (1u << 16) : k ^ 1u);
+    });
+  } else
     CHECK(W < 4); // (at widths 4 and 8 the leaf must have a summary to damage)
 }
 TEST(validate_reports_each_kind_of_damage) {

@@ -5,11 +5,14 @@
 // the runs for valgrind and the sanitizers).
 #include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <iterator>
+#include <limits>
 #include <map>
 #include <random>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <type_traits>
 #include <utility>
 #include <vector>
@@ -455,6 +458,416 @@ TEST(a_disk_query_finds_everything_within_its_radius) {
     for (const Disk &d : all) expected += distance(p, d) <= r ? 1 : 0;
     CHECK_EQ(found, expected);
   }
+}
+
+// ---------------------------------------------------------------------------
+// Every option crossed with every path that writes a leaf's codes: margins
+// {0, small, large} x disk codes {at every size, never} x insert_disjoint's
+// sizes {lowered to 0, the defaults} x widths 2 to 8 (leaves keep codes at
+// 4 to 8), each set the way a user sets it (set_tuning, set_margin),
+// through insert, update inside its leaf and out of it, erase,
+// insert_disjoint on 1 and 2 threads, and construct followed by
+// set_margin, against a plain vector of the stored disks; after every step
+// validate() and probes by collision(), collisions(), query(shape),
+// overlapping(shape) and query(box). Most probes miss a stored disk by less
+// than the margin, or touch it: where a code made from the margin-widened
+// box reads the disk as larger than it is.
+
+/// Two vectors of disks hold the same disks (same_multiset without its
+/// printed keys, which the crossed cases would spend most of their time on).
+bool same_disks(std::vector<Disk> a, std::vector<Disk> b) {
+  const auto by_place = [](const Disk &p, const Disk &q) {
+    return std::make_tuple(p.getCenter().x, p.getCenter().y, p.getRadius()) <
+           std::make_tuple(q.getCenter().x, q.getCenter().y, q.getRadius());
+  };
+  std::sort(a.begin(), a.end(), by_place);
+  std::sort(b.begin(), b.end(), by_place);
+  return a == b;
+}
+
+/// What the crossed cases ran, printed after them.
+struct Crossed {
+  long configurations = 0, steps = 0, probes = 0;
+  void print(const char *what) const {
+    std::cout << "  " << what << ": " << configurations << " configurations, " << steps << " model steps, " << probes
+              << " probes" << std::endl;
+  }
+};
+
+/// A disk of radius r whose centre is d's radius + r + gap from d's, in a
+/// random direction (gap 0: they touch, up to rounding).
+Disk beside(Maker &make, const Disk &d, double r, double gap) {
+  const double a = make.coord(0, 6.283185307179586), reach = d.getRadius() + r + gap;
+  return Disk(Point(d.getCenter().x + reach * std::cos(a), d.getCenter().y + reach * std::sin(a)), r);
+}
+
+/// Probes for a tree storing `stored`: mostly beside a stored disk, missing
+/// it by up to 1.5 margins (or touching it), some anywhere.
+std::vector<Disk> crossed_probes(Maker &make, const std::vector<Disk> &stored, double margin, int n) {
+  std::vector<Disk> probes;
+  for (int k = 0; k < n; ++k) {
+    const double r = make.coord(0, 6);
+    if (stored.empty() || k % 4 == 3) {
+      probes.push_back(Disk(Point(make.coord(0, 1000), make.coord(0, 1000)), r));
+      continue;
+    }
+    const Disk &d = stored[make.rng() % stored.size()];
+    probes.push_back(beside(make, d, r, k % 4 == 2 ? 0.0 : make.coord(0, 1.5 * margin + 0.5)));
+  }
+  return probes;
+}
+
+/// Every query of `tree` for `probes` answers what a scan of `stored`
+/// answers; else *why says which.
+template <class Tree>
+bool probes_agree(const Tree &tree, const std::vector<Disk> &stored, const std::vector<Disk> &probes, std::string *why) {
+  const std::vector<bool> each = tree.collisions(probes);
+  for (std::size_t k = 0; k < probes.size(); ++k) {
+    const Disk &p = probes[k];
+    const BoundingBox box = p.getBox();
+    std::size_t hits = 0, boxes = 0;
+    for (const Disk &d : stored) {
+      hits += intersect(d, p) ? 1 : 0;
+      boxes += d.getBox().overlaps(box) ? 1 : 0;
+    }
+    const auto which = [&] { return "probe " + std::to_string(k) + " " + key_of(p) + " (" + std::to_string(hits) + " hits): "; };
+    if (tree.collision(p) != (hits != 0)) return *why = which() + "collision()", false;
+    if (each[k] != (hits != 0)) return *why = which() + "collisions()", false;
+    std::size_t found = 0, wrong = 0;
+    tree.query(p, [&](const Disk &d) { ++found, wrong += intersect(d, p) ? 0 : 1; });
+    if (found != hits || wrong != 0) return *why = which() + "query(shape) found " + std::to_string(found), false;
+    found = wrong = 0;
+    for (const Disk &d : tree.overlapping(p)) ++found, wrong += intersect(d, p) ? 0 : 1;
+    if (found != hits || wrong != 0) return *why = which() + "overlapping() found " + std::to_string(found), false;
+    found = wrong = 0;
+    tree.query(box, [&](const Disk &d) { ++found, wrong += d.getBox().overlaps(box) ? 0 : 1; });
+    if (found != boxes || wrong != 0) return *why = which() + "query(box) found " + std::to_string(found), false;
+  }
+  return true;
+}
+
+/// The tuning of the crossed cases: disks decided from codes at every size
+/// or never; insert_disjoint's batches, parallel sweep and lanes from any
+/// size, or from the defaults.
+template <class Tree> typename Tree::Tuning crossed_tuning(bool codes, bool lowered) {
+  typename Tree::Tuning t = Tree::default_tuning();
+  t.disk_codes_min_shapes = codes ? 0 : std::numeric_limits<std::size_t>::max();
+  if (lowered) t.disjoint_interleave_min = t.disjoint_lanes_min = t.disjoint_sweep_min = 0;
+  return t;
+}
+
+template <int W> void crossed_run(unsigned seed, double margin, bool codes, bool lowered, int steps, Crossed &ran) {
+  using Tree = BVH<Disk, bvh::shape_traits<Disk>, W>;
+  using Handle = typename Tree::handle;
+  const std::string where = "BVH_SEED=" + std::to_string(seed) + " width " + std::to_string(W) + " margin " +
+                            std::to_string(margin) + " codes " + (codes ? "at every size" : "never") +
+                            (lowered ? ", disjoint sizes lowered" : "");
+  note(where);
+  ++ran.configurations;
+  Maker make(seed);
+  std::mt19937 &rng = make.rng;
+  const int splits[] = {1, 4, W + 1, 4 * W - 4};
+  const int split = splits[rng() % 4], depth_limit = rng() % 5 == 0 ? 4 : 0;
+  Tree tree(split, depth_limit);
+  tree.set_tuning(crossed_tuning<Tree>(codes, lowered));
+  tree.set_margin(margin);
+  std::vector<std::pair<Handle, Disk>> model;
+  std::vector<Disk> stored;
+  const auto stored_now = [&] {
+    stored.clear();
+    for (const auto &e : model) stored.push_back(e.second);
+    return stored;
+  };
+  const auto from_tree = [&] {
+    model.clear();
+    for (auto it = tree.begin(); it != tree.end(); ++it) model.push_back({it.id(), *it});
+  };
+  for (const Disk &d : make.scene<Disk>(100, 5)) model.push_back({tree.insert(d), d});
+  std::string why;
+  for (int step = 0; step < steps; ++step) {
+    const unsigned op = model.empty() ? 0 : unsigned(rng() % 16);
+    const std::size_t pick = model.empty() ? 0 : rng() % model.size();
+    const char *names[] = {"insert", "erase", "update inside", "update out", "insert_disjoint", "construct"};
+    const int kind = op < 5 ? 0 : op < 7 ? 1 : op < 10 ? 2 : op < 13 ? 3 : op < 15 ? 4 : 5;
+    note(where + " step " + std::to_string(step) + " (" + names[kind] + ", " + std::to_string(model.size()) +
+         " disks, split " + std::to_string(split) + " depth limit " + std::to_string(depth_limit) + ")");
+    if (kind == 0) {
+      Disk d;
+      make.make(d, 5);
+      model.push_back({tree.insert(d), d});
+    } else if (kind == 1) {
+      tree.erase(model[pick].first);
+      model[pick] = model.back();
+      model.pop_back();
+    } else if (kind == 2 || kind == 3) {
+      const Disk &d = model[pick].second;
+      const double jump = kind == 2 ? std::max(margin, 0.02) / 2 : 300;
+      const Disk to(Point(d.getCenter().x + make.coord(-jump, jump), d.getCenter().y + make.coord(-jump, jump)),
+                    kind == 2 ? d.getRadius() : make.coord(0, 5), d.getColor());
+      tree.update(model[pick].first, to);
+      model[pick].second = to;
+    } else if (kind == 4) {
+      // Candidates anywhere and beside stored disks; the loop's choice by
+      // a scan of the model, and each stored disk keeps its handle.
+      std::vector<Disk> c = make.scene<Disk>(int(rng() % 40), 5);
+      for (const Disk &p : crossed_probes(make, stored_now(), margin, int(rng() % 40))) c.push_back(p);
+      std::vector<std::size_t> want;
+      std::vector<Disk> after = stored;
+      for (std::size_t i = 0; i < c.size(); ++i) {
+        bool hit = false;
+        for (const Disk &d : after) hit = hit || intersect(d, c[i]);
+        if (!hit) {
+          after.push_back(c[i]);
+          want.push_back(i);
+        }
+      }
+      CHECK(tree.insert_disjoint(c, 1 + unsigned(rng() % 2)) == want);
+      for (const auto &[h, d] : model)
+        if (!tree.contains(h) || !(tree.get(h) == d)) {
+          CHECK_EQ(std::string("a handle names another shape after insert_disjoint"), std::string());
+          return;
+        }
+      CHECK(same_disks(contents(tree), after));
+      from_tree();
+    } else {
+      // construct, then the margin set again (or construct with it set).
+      const bool margin_after = rng() % 2 == 0;
+      if (margin_after) tree.set_margin(0);
+      tree.construct(stored_now());
+      if (margin_after) tree.set_margin(margin);
+      from_tree();
+    }
+    ++ran.steps;
+    if (!tree.validate(&why)) {
+      CHECK_EQ(why, std::string());
+      return;
+    }
+    if (tree.size() != model.size()) {
+      CHECK_EQ(tree.size(), model.size());
+      return;
+    }
+    if (step % 8 == 0)
+      for (const auto &[h, d] : model)
+        if (!tree.contains(h) || !(tree.get(h) == d)) {
+          CHECK_EQ(std::string("a handle names another shape"), std::string());
+          return;
+        }
+    const std::vector<Disk> probes = crossed_probes(make, stored_now(), margin, 4);
+    ran.probes += long(probes.size());
+    if (!probes_agree(tree, stored, probes, &why)) {
+      CHECK_EQ(why, std::string());
+      return;
+    }
+  }
+}
+
+/// crossed_run() at width W for every margin, codes and disjoint sizes.
+template <int W> void crossed_at_width(unsigned seed, Crossed &ran) {
+  for (const double margin : {0.0, 0.4, 6.0})
+    for (const bool codes : {true, false})
+      for (const bool lowered : {true, false})
+        crossed_run<W>(seed++, margin, codes, lowered, scaled(60), ran);
+}
+
+TEST(crossed_options_at_widths_2_to_5_match_the_model) {
+  Crossed ran;
+  crossed_at_width<2>(base_seed() + 4000, ran);
+  crossed_at_width<3>(base_seed() + 4020, ran);
+  crossed_at_width<4>(base_seed() + 4040, ran);
+  crossed_at_width<5>(base_seed() + 4060, ran);
+  ran.print("widths 2 to 5");
+}
+TEST(crossed_options_at_widths_6_to_8_match_the_model) {
+  Crossed ran;
+  crossed_at_width<6>(base_seed() + 4080, ran);
+  crossed_at_width<7>(base_seed() + 4100, ran);
+  crossed_at_width<8>(base_seed() + 4120, ran);
+  ran.print("widths 6 to 8");
+}
+
+TEST(a_margin_does_not_widen_an_inserted_disks_code) {
+  // Width 8, split 4, margin 1, disks decided from codes at every size: the
+  // probe is 4.12 from (17, 50) with radii summing to 4, so it touches
+  // nothing. A code made from the margin-widened box read (17, 50) as a
+  // disk of radius 2 and reported a collision.
+  using Tree = BVH<Disk, bvh::shape_traits<Disk>, 8>;
+  Tree tree(4);
+  tree.set_tuning(crossed_tuning<Tree>(true, false));
+  tree.set_margin(1);
+  const std::vector<Disk> disks{Disk(Point(6, 27), 2),  Disk(Point(73, 20), 2), Disk(Point(55, 35), 1),
+                                Disk(Point(42, 47), 2), Disk(Point(17, 81), 1), Disk(Point(17, 50), 1)};
+  for (const Disk &d : disks) tree.insert(d);
+  const Disk probe(Point(16, 54), 3);
+  for (const Disk &d : disks) CHECK(!intersect(d, probe));
+  CHECK(!tree.collision(probe));
+  CHECK(!tree.collisions({probe})[0]);
+  std::size_t found = 0;
+  tree.query(probe, [&](const Disk &) { ++found; });
+  for (const Disk &d : tree.overlapping(probe)) found += d.getRadius() > 0 ? 1 : 1;
+  CHECK_EQ(found, std::size_t(0));
+  std::string why;
+  CHECK(tree.validate(&why));
+  CHECK_EQ(why, std::string());
+}
+
+/// shape_traits<Disk> whose intersect() counts its calls.
+struct CountingDiskTraits : bvh::shape_traits<Disk> {
+  static long &calls() {
+    static long n = 0;
+    return n;
+  }
+  static bool intersect(const Disk &a, const Disk &b) {
+    ++calls();
+    return bvh::shape_traits<Disk>::intersect(a, b);
+  }
+};
+
+TEST(tuning_is_the_trees_and_sets_where_codes_decide) {
+  using Tree = BVH<Disk, CountingDiskTraits, 8>;
+  Tree tree(16);
+  // A new tree, its copies and moves: the defaults, or the source's.
+  const Tree::Tuning d = Tree::default_tuning();
+  CHECK_EQ(tree.tuning().disk_codes_min_shapes, d.disk_codes_min_shapes);
+  CHECK_EQ(tree.tuning().disjoint_lanes_min, d.disjoint_lanes_min);
+  CHECK_EQ(BVH<Triangle>::default_tuning().disjoint_interleave_min, d.disjoint_interleave_min);
+  Tree::Tuning t = d;
+  t.disk_codes_min_shapes = 7;
+  t.disjoint_sweep_min = 9;
+  tree.set_tuning(t);
+  Tree copy(tree), moved(std::move(copy));
+  CHECK_EQ(moved.tuning().disk_codes_min_shapes, std::size_t(7));
+  CHECK_EQ(moved.tuning().disjoint_sweep_min, std::size_t(9));
+  Tree other(16);
+  other.swap(moved);
+  CHECK_EQ(other.tuning().disk_codes_min_shapes, std::size_t(7));
+  // Decided from codes (0) or not (never): the same answers, and with the
+  // codes fewer calls of intersect().
+  const unsigned seed = base_seed() + 4200;
+  note("BVH_SEED=" + std::to_string(seed));
+  Maker make(seed);
+  for (const Disk &d : make.scene<Disk>(2000, 5)) tree.insert(d);
+  const std::vector<Disk> probes = make.scene<Disk>(500, 8);
+  long calls[2];
+  std::vector<bool> answers[2];
+  for (int codes = 0; codes < 2; ++codes) {
+    tree.set_tuning(crossed_tuning<Tree>(codes == 1, false));
+    CountingDiskTraits::calls() = 0;
+    for (const Disk &p : probes) answers[codes].push_back(tree.collision(p));
+    calls[codes] = CountingDiskTraits::calls();
+  }
+  CHECK(answers[0] == answers[1]);
+  CHECK(calls[1] * 2 < calls[0]);
+}
+
+/// Two of the program's disks meet (intersect.h's exact test).
+bool stored_disks_meet(const Disk &a, const Disk &b) { return intersect(a, b); }
+
+/// An id adaptor (docs/library.txt, YOUR OWN TYPES 3): the tree stores ids
+/// into the program's array of disks, which declares them inscribed disks
+/// when `Inscribed` (then collision searches decide them from the codes).
+template <bool Inscribed> struct DiskIds {
+  const std::vector<Disk> *disks;
+  static constexpr bool inscribed_disks = Inscribed;
+  bvh::bounds box(std::uint32_t i) const {
+    const BoundingBox b = (*disks)[i].getBox();
+    return {b.getMin().x, b.getMin().y, b.getMax().x, b.getMax().y};
+  }
+  Point center(std::uint32_t i) const { return (*disks)[i].getCenter(); }
+  bool intersect(std::uint32_t i, std::uint32_t j) const { return stored_disks_meet((*disks)[i], (*disks)[j]); }
+};
+
+/// Margins x the id adaptor (inscribed disks or not) x disk codes at width
+/// W: inserts, moves by changing the array then update(h, id), erases,
+/// construct then set_margin; probes are ids too (disks appended to the
+/// array, never stored), against a scan of the stored ids.
+template <int W, bool Inscribed>
+void ids_crossed(unsigned seed, double margin, bool codes, int steps, Crossed &ran) {
+  using Tree = BVH<std::uint32_t, DiskIds<Inscribed>, W>;
+  using Handle = typename Tree::handle;
+  const std::string where = "BVH_SEED=" + std::to_string(seed) + " ids at width " + std::to_string(W) + " margin " +
+                            std::to_string(margin) + (Inscribed ? " inscribed" : "") + " codes " +
+                            (codes ? "at every size" : "never");
+  note(where);
+  ++ran.configurations;
+  Maker make(seed);
+  std::mt19937 &rng = make.rng;
+  std::vector<Disk> disks;
+  disks.reserve(std::size_t(steps) * 8 + 400); // (the adaptor keeps a pointer to it)
+  Tree tree(W == 8 ? 16 : 4, 0, DiskIds<Inscribed>{&disks});
+  tree.set_tuning(crossed_tuning<Tree>(codes, false));
+  tree.set_margin(margin);
+  std::vector<std::pair<Handle, std::uint32_t>> model; // each stored id with its handle
+  const auto add = [&](const Disk &d) {
+    disks.push_back(d);
+    return std::uint32_t(disks.size() - 1);
+  };
+  for (const Disk &d : make.scene<Disk>(150, 5)) {
+    const std::uint32_t id = add(d);
+    model.push_back({tree.insert(id), id});
+  }
+  std::string why;
+  for (int step = 0; step < steps; ++step) {
+    note(where + " step " + std::to_string(step));
+    const unsigned op = model.empty() ? 0 : unsigned(rng() % 12);
+    const std::size_t pick = model.empty() ? 0 : rng() % model.size();
+    if (op < 4) {
+      Disk d;
+      make.make(d, 5);
+      const std::uint32_t id = add(d);
+      model.push_back({tree.insert(id), id});
+    } else if (op < 6) {
+      tree.erase(model[pick].first);
+      model[pick] = model.back();
+      model.pop_back();
+    } else if (op < 11) { // a move within the margin, or far
+      Disk &d = disks[model[pick].second];
+      const double jump = op < 9 ? std::max(margin, 0.02) / 2 : 300;
+      d = Disk(Point(d.getCenter().x + make.coord(-jump, jump), d.getCenter().y + make.coord(-jump, jump)),
+               d.getRadius(), d.getColor());
+      tree.update(model[pick].first, model[pick].second);
+    } else {
+      std::vector<std::uint32_t> ids;
+      for (const auto &e : model) ids.push_back(e.second);
+      tree.set_margin(0);
+      tree.construct(ids);
+      tree.set_margin(margin);
+      model.clear();
+      for (auto it = tree.begin(); it != tree.end(); ++it) model.push_back({it.id(), *it});
+    }
+    ++ran.steps;
+    if (!tree.validate(&why) || tree.size() != model.size()) {
+      CHECK_EQ(why, std::string());
+      CHECK_EQ(tree.size(), model.size());
+      return;
+    }
+    std::vector<Disk> stored;
+    for (const auto &e : model) stored.push_back(disks[e.second]);
+    for (const Disk &p : crossed_probes(make, stored, margin, 4)) {
+      ++ran.probes;
+      const std::uint32_t probe = add(p);
+      std::size_t hits = 0;
+      for (const Disk &d : stored) hits += intersect(d, p) ? 1 : 0;
+      std::size_t found = 0, wrong = 0;
+      tree.query(probe, [&](std::uint32_t i) { ++found, wrong += intersect(disks[i], p) ? 0 : 1; });
+      if (tree.collision(probe) != (hits != 0) || tree.collisions({probe})[0] != (hits != 0) || found != hits ||
+          wrong != 0) {
+        CHECK_EQ(key_of(p) + " hits " + std::to_string(found), key_of(p) + " hits " + std::to_string(hits));
+        return;
+      }
+    }
+  }
+}
+
+TEST(crossed_options_through_an_id_adaptor_match_the_model) {
+  Crossed ran;
+  unsigned seed = base_seed() + 4300;
+  for (const double margin : {0.0, 0.4, 6.0})
+    for (const bool codes : {true, false}) {
+      ids_crossed<8, true>(seed++, margin, codes, scaled(60), ran);
+      ids_crossed<4, true>(seed++, margin, codes, scaled(60), ran);
+      ids_crossed<8, false>(seed++, margin, codes, scaled(60), ran);
+    }
+  ran.print("id adaptor");
 }
 
 } // namespace
