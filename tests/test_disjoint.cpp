@@ -11,7 +11,9 @@
 // failure (BVH_SEED changes them; BVH_TEST_SCALE shrinks the runs).
 #include <algorithm>
 #include <atomic>
+#include <iostream>
 #include <iterator>
+#include <limits>
 #include <cmath>
 #include <random>
 #include <sstream>
@@ -341,6 +343,123 @@ TEST(disjoint_lanes_from_their_thread_count) {
 TEST(disjoint_lanes_are_the_loop_at_width_2) { lanes_at_width<2>(base_seed() + 540); }
 TEST(disjoint_lanes_are_the_loop_at_width_4) { lanes_at_width<4>(base_seed() + 560); }
 TEST(disjoint_lanes_are_the_loop_at_width_8) { lanes_at_width<8>(base_seed() + 580); }
+// Margins x disk codes x insert_disjoint's step 4 (the lanes, which run at
+// margin 0, and the serial insertions a margin takes) x handles: the kept
+// indices against a scan of the stored disks (not only against the loop,
+// which a wrong collision() would mislead the same way), the loop's tree
+// with its handles, and those handles used afterwards (update inside and
+// out of the leaf, erase, and a second call reusing the erased ids), with
+// validate() throughout. `ran` counts the model steps: calls and handle
+// operations.
+template <int W> void margins_lanes_handles(unsigned seed, double margin, bool codes, long &ran) {
+  using T = Tree<Disk, W>;
+  using Handle = typename T::handle;
+  const std::string where = "BVH_SEED=" + std::to_string(seed) + " width " + std::to_string(W) + " margin " +
+                            std::to_string(margin) + " codes " + (codes ? "at every size" : "never");
+  note(where);
+  Maker make(seed);
+  const int split = W == 8 ? 8 : 4;
+  typename T::Tuning tuning = T::default_tuning();
+  tuning.disk_codes_min_shapes = codes ? 0 : std::numeric_limits<std::size_t>::max();
+  const std::vector<Disk> base = make.scene<Disk>(lanes_scaled(600), 0.5);
+  std::vector<Disk> stored = base; // the model: what the tree stores
+  // The loop's tree, and the tree insert_disjoint fills: the same start,
+  // handles kept from insert(), two erased (ids to reuse).
+  T loop(split), tree(split);
+  std::vector<Handle> handles;
+  for (T *t : {&loop, &tree}) {
+    t->set_tuning(tuning);
+    t->set_margin(margin);
+    handles.clear();
+    for (const Disk &d : base) handles.push_back(t->insert(d));
+    t->erase(handles[3]);
+    t->erase(handles[7]);
+  }
+  stored.erase(stored.begin() + 7);
+  stored.erase(stored.begin() + 3);
+  const auto scan = [&](const std::vector<Disk> &c) {
+    std::vector<std::size_t> kept;
+    for (std::size_t i = 0; i < c.size(); ++i) {
+      bool hit = false;
+      for (std::size_t k = 0; k < stored.size() && !hit; ++k) hit = intersect(stored[k], c[i]);
+      if (!hit) {
+        stored.push_back(c[i]);
+        kept.push_back(i);
+      }
+    }
+    return kept;
+  };
+  std::vector<std::pair<Handle, Disk>> named; // the kept ones by their handles (the loop's)
+  for (int round = 0; round < 2; ++round) {
+    note(where + " round " + std::to_string(round));
+    // Sparse small disks (most kept: the lanes take them), then disks
+    // beside stored ones, missing them by less than the margin.
+    std::vector<Disk> c;
+    for (const Disk &d : make.scene<Disk>(lanes_scaled(900), 0.4)) c.push_back(d);
+    for (int k = 0; k < lanes_scaled(200); ++k) {
+      const Disk &d = stored[make.rng() % stored.size()];
+      const double r = make.coord(0, 1), a = make.coord(0, 6.283185307179586);
+      const double reach = d.getRadius() + r + make.coord(0, 1.5 * margin + 0.2);
+      c.push_back(Disk(Point(d.getCenter().x + reach * std::cos(a), d.getCenter().y + reach * std::sin(a)), r));
+    }
+    const std::vector<std::size_t> want = scan(c);
+    std::vector<std::size_t> loop_kept;
+    for (std::size_t i = 0; i < c.size(); ++i)
+      if (!loop.collision(c[i])) {
+        named.push_back({loop.insert(c[i]), c[i]});
+        loop_kept.push_back(i);
+      }
+    CHECK(loop_kept == want);
+    const std::size_t laps = lanes_probe::laps();
+    const std::vector<std::size_t> kept = tree.insert_disjoint(c, 2);
+    ++ran;
+    // (with a margin the lanes do not run: boxes are then no union of their
+    // contents, which the lanes rely on)
+    if (margin == 0) CHECK(lanes_probe::laps() > laps);
+    CHECK(kept == want);
+    std::string why;
+    CHECK(tree.validate(&why));
+    CHECK_EQ(why, std::string());
+    CHECK(fingerprint(tree) == fingerprint(loop));
+    for (const auto &[h, d] : named) CHECK(tree.contains(h) && tree.get(h) == d);
+    // The handles used: a tenth moved within the margin or far, a tenth
+    // erased, on both trees and the model.
+    for (std::size_t k = 0; k < named.size(); k += 5) {
+      Handle h = named[k].first;
+      if (k % 10 == 0) {
+        for (T *t : {&loop, &tree}) t->erase(h);
+        stored.erase(std::find(stored.begin(), stored.end(), named[k].second));
+        named[k] = named.back();
+        named.pop_back();
+      } else {
+        const Disk &d = named[k].second;
+        const double jump = k % 4 == 1 ? margin / 2 : 200;
+        const Disk to(Point(d.getCenter().x + make.coord(-jump, jump), d.getCenter().y + make.coord(-jump, jump)),
+                      d.getRadius(), d.getColor());
+        for (T *t : {&loop, &tree}) t->update(h, to);
+        *std::find(stored.begin(), stored.end(), d) = to;
+        named[k].second = to;
+      }
+      ++ran;
+    }
+    CHECK(tree.validate(&why));
+    CHECK_EQ(why, std::string());
+    CHECK(fingerprint(tree) == fingerprint(loop));
+  }
+}
+
+TEST(disjoint_margins_lanes_and_handles_crossed) {
+  long ran = 0;
+  unsigned seed = base_seed() + 600;
+  for (const double margin : {0.0, 0.3, 4.0})
+    for (const bool codes : {true, false}) {
+      margins_lanes_handles<3>(seed++, margin, codes, ran);
+      margins_lanes_handles<4>(seed++, margin, codes, ran);
+      margins_lanes_handles<8>(seed++, margin, codes, ran);
+    }
+  std::cout << "  18 configurations, " << ran << " model steps" << std::endl;
+}
+
 /// The room the lanes reserve for their worst case goes back when the call
 /// ends: the tree holds about what the loop's holds.
 TEST(disjoint_gives_back_the_lanes_room) {
