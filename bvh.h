@@ -3654,8 +3654,9 @@ void undo_descent(Core<T, Tr, W> &core, int last, int stop, const Box *leaf_box)
 }
 
 /// insert_below()'s second half: `shape` (its own box `own`, not grown
-/// by the margin: the leaf's summary codes it; its id `id`) goes into leaf n, whose count and box the descent from `top` has
-/// already raised (its box was `leaf_box`), which splits by the build rule
+/// by the margin: the leaf's summary codes it; its id `id`) goes into
+/// leaf n, whose count and box the descent from `top` has already raised
+/// (its box was `leaf_box`), which splits by the build rule
 /// when it then holds more than split_threshold shapes above depth_limit.
 /// Returns the node the shape went to. Strong: if it throws, the counts
 /// and boxes from `top` down are undone.
@@ -3692,8 +3693,8 @@ BVH_ALWAYS_INLINE int insert_at_leaf(Core<T, Tr, W> &core, int top, int n, const
 
 /// The descent of insert_unbalanced() from node `top` down: by least area
 /// growth (choose_child), adding the shape's own box `own` grown by the
-/// margin to every box and the shape to every count on the way, then adding the shape to
-/// the leaf reached (insert_at_leaf). Returns the node the shape went to
+/// margin to every box and the shape to every count on the way, then
+/// adding the shape to the leaf reached (insert_at_leaf). Returns the node the shape went to
 /// (the leaf, or the subtree its split made); nothing above `top` is read
 /// or written (section 8b runs it on several subtrees at once). Strong: if
 /// it throws, the counts and boxes from `top` down are undone (a split is
@@ -5766,7 +5767,8 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
           kept_boxes.push_back(b);
         }
       } else {
-        const auto pairs = surviving_pairs(core.traits, candidates, survivors, crew, threads, core.tuning.disjoint_sweep_min, clock);
+        const auto pairs =
+            surviving_pairs(core.traits, candidates, survivors, crew, threads, core.tuning.disjoint_sweep_min, clock);
         std::size_t p = 0;
         for (std::uint32_t r = 0; r < s; ++r) {
           bool free = true;
