@@ -390,7 +390,14 @@ template <int W> void margins_lanes_handles(unsigned seed, double margin, bool c
     std::vector<std::size_t> kept;
     for (std::size_t i = 0; i < c.size(); ++i) {
       bool hit = false;
-      for (std::size_t k = 0; k < stored.size() && !hit; ++k) hit = intersect(stored[k], c[i]);
+      for (std::size_t k = 0; k < stored.size() && !hit; ++k) {
+        // (centres farther apart on an axis than the radii reach: they miss)
+        const double reach = (stored[k].getRadius() + c[i].getRadius()) * (1 + 1e-9) + 1e-9;
+        if (std::fabs(stored[k].getCenter().x - c[i].getCenter().x) > reach ||
+            std::fabs(stored[k].getCenter().y - c[i].getCenter().y) > reach)
+          continue;
+        hit = intersect(stored[k], c[i]);
+      }
       if (!hit) {
         stored.push_back(c[i]);
         kept.push_back(i);
