@@ -582,7 +582,8 @@ template <int W> void crossed_run(unsigned seed, double margin, bool codes, bool
     model.clear();
     for (auto it = tree.begin(); it != tree.end(); ++it) model.push_back({it.id(), *it});
   };
-  for (const Disk &d : make.scene<Disk>(100, 5)) model.push_back({tree.insert(d), d});
+  // (scaled-down runs, valgrind's and the sanitizers', start smaller)
+  for (const Disk &d : make.scene<Disk>(std::max(40, scaled(100)), 5)) model.push_back({tree.insert(d), d});
   std::string why;
   for (int step = 0; step < steps; ++step) {
     const unsigned op = model.empty() ? 0 : unsigned(rng() % 16);
@@ -801,7 +802,7 @@ void ids_crossed(unsigned seed, double margin, bool codes, int steps, Crossed &r
     disks.push_back(d);
     return std::uint32_t(disks.size() - 1);
   };
-  for (const Disk &d : make.scene<Disk>(150, 5)) {
+  for (const Disk &d : make.scene<Disk>(std::max(40, scaled(150)), 5)) {
     const std::uint32_t id = add(d);
     model.push_back({tree.insert(id), id});
   }
