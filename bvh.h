@@ -611,14 +611,66 @@ template <class Tr, class T> BVH_ALWAYS_INLINE Box box_of(const Tr &traits, cons
 /// The least and the greatest supported magnitude besides 0.
 constexpr double kLeastSupported = 0x1p-200, kMostSupported = 0x1p200;
 
-/// v is 0 or of magnitude in [2^-200, 2^200] (never NaN or infinite).
-BVH_ALWAYS_INLINE bool supported(double v) {
-  const double a = std::fabs(v);
-  return (a >= kLeastSupported && a <= kMostSupported) || a == 0;
+/// 1 unless v is 0 or of magnitude in [2^-200, 2^200] (NaN and the
+/// infinities give 1), without a branch. (A double's bits without the
+/// sign order as its magnitude does, NaNs above the infinities.)
+BVH_ALWAYS_INLINE unsigned unsupported_bit(double v) {
+  std::uint64_t u;
+  std::memcpy(&u, &v, sizeof u);
+  u <<= 1; // the sign dropped
+  constexpr std::uint64_t least = std::uint64_t(1023 - 200) << 53, most = std::uint64_t(1023 + 200) << 53;
+  return unsigned(u - least > most - least) & unsigned(u != 0);
 }
+/// v is 0 or of magnitude in [2^-200, 2^200] (never NaN or infinite).
+BVH_ALWAYS_INLINE bool supported(double v) { return unsupported_bit(v) == 0; }
+
+/// Whether any of the numbers it is given is unsupported (or a radius
+/// negative, or a box's min above its max): every number of a shape is
+/// checked, without a branch, and the answer read once. Two at a time with
+/// SSE2.
+class UnsupportedAny {
+public:
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+  BVH_ALWAYS_INLINE void pair(double a, double b) { bad_ = _mm_or_pd(bad_, lanes(_mm_set_pd(b, a))); }
+  BVH_ALWAYS_INLINE void radius(double r) {
+    const __m128d v = _mm_set1_pd(r);
+    bad_ = _mm_or_pd(bad_, _mm_or_pd(lanes(v), _mm_cmplt_pd(v, _mm_setzero_pd())));
+  }
+  BVH_ALWAYS_INLINE void box(const Box &b) {
+    const __m128d lo = _mm_set_pd(b.y0, b.x0), hi = _mm_set_pd(b.y1, b.x1);
+    bad_ = _mm_or_pd(bad_, _mm_or_pd(_mm_or_pd(lanes(lo), lanes(hi)), _mm_cmpnle_pd(lo, hi)));
+  }
+  BVH_ALWAYS_INLINE bool any() const { return _mm_movemask_pd(bad_) != 0; }
+
+private:
+  /// All ones in each lane of v that is unsupported (NaN included: the
+  /// "not less or equal" compare is true for it).
+  static BVH_ALWAYS_INLINE __m128d lanes(__m128d v) {
+    const __m128d a = _mm_andnot_pd(_mm_set1_pd(-0.0), v);
+    const __m128d big = _mm_cmpnle_pd(a, _mm_set1_pd(kMostSupported));
+    const __m128d tiny = _mm_and_pd(_mm_cmplt_pd(a, _mm_set1_pd(kLeastSupported)), _mm_cmpneq_pd(a, _mm_setzero_pd()));
+    return _mm_or_pd(big, tiny);
+  }
+  __m128d bad_ = _mm_setzero_pd();
+#else
+  BVH_ALWAYS_INLINE void pair(double a, double b) { bad_ |= unsupported_bit(a) | unsupported_bit(b); }
+  BVH_ALWAYS_INLINE void radius(double r) { bad_ |= unsupported_bit(r) | unsigned(!(r >= 0)); }
+  BVH_ALWAYS_INLINE void box(const Box &b) {
+    bad_ |= unsupported_bit(b.x0) | unsupported_bit(b.y0) | unsupported_bit(b.x1) | unsupported_bit(b.y1) |
+            unsigned(!(b.x0 <= b.x1)) | unsigned(!(b.y0 <= b.y1));
+  }
+  BVH_ALWAYS_INLINE bool any() const { return bad_ != 0; }
+
+private:
+  unsigned bad_ = 0;
+#endif
+};
+
 /// Every side supported, and min <= max on both axes.
 BVH_ALWAYS_INLINE bool supported(const Box &b) {
-  return supported(b.x0) & supported(b.y0) & supported(b.x1) & supported(b.y1) & (b.x0 <= b.x1) & (b.y0 <= b.y1);
+  UnsupportedAny bad;
+  bad.box(b);
+  return !bad.any();
 }
 /// A side of `b` is NaN.
 inline bool has_nan(const Box &b) { return !(b.x0 == b.x0) | !(b.y0 == b.y0) | !(b.x1 == b.x1) | !(b.y1 == b.y1); }
@@ -641,32 +693,32 @@ template <class S, class = void> struct HoldsDisk : std::false_type {};
 template <class S>
 struct HoldsDisk<S, std::void_t<decltype(double(std::declval<const S &>().disk()->getRadius()))>> : std::true_type {};
 
-/// The numbers a shape shows besides its box (above) are supported, and a
-/// radius is not negative. A type that shows none (an id an adaptor reads)
-/// is judged by its box alone.
-template <class S> bool supported_numbers(const S &s) {
-  bool ok = true;
+/// Adds the numbers a shape shows besides its box (above) to `bad`: a
+/// type that shows none (an id an adaptor reads) is judged by its box
+/// alone.
+template <class S> BVH_ALWAYS_INLINE void add_numbers(UnsupportedAny &bad, const S &s) {
   if constexpr (ShowsPoints<S>::value) {
     for (int i = 0, n = int(s.numPoints()); i < n; ++i) {
       const auto &p = s.getPoint(i);
-      ok &= supported(double(p.x)) & supported(double(p.y));
+      bad.pair(double(p.x), double(p.y));
     }
   } else if constexpr (ShowsRadius<S>::value && ShowsCenter<S>::value) {
-    ok &= supported(double(s.getCenter().x)) & supported(double(s.getCenter().y));
+    bad.pair(double(s.getCenter().x), double(s.getCenter().y));
   }
   if constexpr (ShowsRadius<S>::value) {
-    const double r = double(s.getRadius());
-    ok &= supported(r) & (r >= 0);
+    bad.radius(double(s.getRadius()));
   } else if constexpr (HoldsDisk<S>::value) {
-    if (const auto *d = s.disk()) ok &= supported(double(d->getRadius())) & (d->getRadius() >= 0);
+    if (const auto *d = s.disk()) bad.radius(double(d->getRadius()));
   }
-  return ok;
 }
 
 /// The tree may store `shape`, and answers a query by it: its box as the
 /// traits read it and its own numbers are supported.
-template <class Tr, class T> bool supported_shape(const Tr &traits, const T &shape) {
-  return supported(box_of(traits, shape)) && supported_numbers(shape);
+template <class Tr, class T> BVH_ALWAYS_INLINE bool supported_shape(const Tr &traits, const T &shape) {
+  UnsupportedAny bad;
+  bad.box(box_of(traits, shape));
+  add_numbers(bad, shape);
+  return !bad.any();
 }
 
 /// Throws std::invalid_argument for the shape `which` (e.g.
@@ -4063,11 +4115,9 @@ template <class T, class Tr, int W> void update_shape(Core<T, Tr, W> &core, std:
 }
 
 /// Sets the margin and recomputes every box, bottom-up: O(n).
-/// Strong: nothing changes before the pass that cannot throw. A margin
-/// above 2^200 (infinity too) is taken as 2^200, so that fat boxes keep
-/// the nearest searches' squared distances finite.
+/// Strong: nothing changes before the pass that cannot throw.
 template <class T, class Tr, int W> void set_margin(Core<T, Tr, W> &core, double m) {
-  const double margin = m > 0 ? std::min(m, kMostSupported) : 0;
+  const double margin = m > 0 && m < std::numeric_limits<double>::infinity() ? m : 0;
   if (core.root < 0) {
     core.margin = margin;
     return;
@@ -4606,8 +4656,9 @@ template <class P> struct RayMetric {
 /// shapes under a child; the search stops when the next node's bound is
 /// past metric.beyond(the k-th key so far). O(log n + k) typically. None
 /// when the metric's point or ray is not supported; when it is, every key
-/// of a supported tree is finite (a squared distance below 2^410, boxes
-/// with their margin included), so no shape is lost to an overflow.
+/// of a supported tree is finite (the float boxes of the nodes, fat or
+/// not, are bounded by float's range; a shape's own box by 2^201), so no
+/// shape is lost to an overflow.
 template <class T, class Tr, int W, class Metric, class Answers>
 void best_first(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k, Answers &found) {
   found.clear();

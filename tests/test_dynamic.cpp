@@ -1547,19 +1547,19 @@ TEST(nearest_and_pairs_over_the_whole_supported_range_widths_3_and_8) {
   whole_range_against_model<8>(base_seed() + 3301);
 }
 
-// A margin past 2^200 (1e300, infinity) is taken as 2^200: fat boxes of
-// 1e300 would make the nearest searches' squared distances infinite and
-// lose answers.
+// A margin is not a shape's value: 2^200 and 1e300 are taken as they are,
+// and every answer stays the scan's (the searches read the nodes' float
+// boxes, whose range bounds a fat box).
 template <int W> void huge_margin_keeps_every_answer(unsigned seed) {
   using Tree = BVH<Disk, bvh::shape_traits<Disk>, W>;
   note("seed " + std::to_string(seed) + " width " + std::to_string(W));
   Maker make(seed);
   const std::vector<Disk> scene = make.scene<Disk>(60, 30);
-  for (const double m : {1e300, std::numeric_limits<double>::infinity(), std::ldexp(1.0, 200)}) {
+  for (const double m : {1e300, std::ldexp(1.0, 200)}) {
     Tree tree(4);
     tree.set_margin(m);
     for (const Disk &d : scene) tree.insert(d);
-    CHECK_EQ(tree.margin(), std::ldexp(1.0, 200));
+    CHECK_EQ(tree.margin(), m);
     CHECK(tree.validate());
     std::vector<typename Tree::neighbor> near;
     tree.nearest(Point(500, 500), scene.size(), std::back_inserter(near));
@@ -1575,7 +1575,7 @@ template <int W> void huge_margin_keeps_every_answer(unsigned seed) {
     CHECK_EQ(tree.count_overlapping_pairs(), pairs);
   }
 }
-TEST(margin_past_2_200_is_taken_as_2_200_widths_3_and_8) {
+TEST(huge_margins_keep_every_answer_widths_3_and_8) {
   huge_margin_keeps_every_answer<3>(base_seed() + 3400);
   huge_margin_keeps_every_answer<8>(base_seed() + 3401);
 }
