@@ -621,8 +621,6 @@ BVH_ALWAYS_INLINE unsigned unsupported_bit(double v) {
   constexpr std::uint64_t least = std::uint64_t(1023 - 200) << 53, most = std::uint64_t(1023 + 200) << 53;
   return unsigned(u - least > most - least) & unsigned(u != 0);
 }
-/// v is 0 or of magnitude in [2^-200, 2^200] (never NaN or infinite).
-BVH_ALWAYS_INLINE bool supported(double v) { return unsupported_bit(v) == 0; }
 
 /// Whether any of the numbers it is given is unsupported (or a radius
 /// negative, or a box's min above its max): every number of a shape is
@@ -673,7 +671,7 @@ BVH_ALWAYS_INLINE bool supported(const Box &b) {
   return !bad.any();
 }
 /// A side of `b` is NaN.
-inline bool has_nan(const Box &b) { return !(b.x0 == b.x0) | !(b.y0 == b.y0) | !(b.x1 == b.x1) | !(b.y1 == b.y1); }
+inline bool has_nan(const Box &b) { return std::isnan(b.x0) || std::isnan(b.y0) || std::isnan(b.x1) || std::isnan(b.y1); }
 
 // What a shape type shows of its own numbers: points (numPoints() and
 // getPoint(i), as the course's polygons and this project's shapes), a
@@ -724,10 +722,11 @@ template <class Tr, class T> BVH_ALWAYS_INLINE bool supported_shape(const Tr &tr
 /// Throws std::invalid_argument for the shape `which` (e.g.
 /// "elements[37]") of `call`, naming its box. (Out of line: the message is
 /// built only on the error.)
+[[noreturn]]
 #if defined(__GNUC__)
 __attribute__((noinline, cold))
 #endif
-[[noreturn]] inline void refuse_unsupported(const char *call, const std::string &which, const Box &b) {
+inline void refuse_unsupported(const char *call, const std::string &which, const Box &b) {
   char box[160];
   std::snprintf(box, sizeof box, "[<%.17g %.17g> <%.17g %.17g>]", b.x0, b.y0, b.x1, b.y1);
   throw std::invalid_argument(std::string("bvh::BVH::") + call + ": " + which + " (box " + box +
@@ -4594,7 +4593,11 @@ template <class T> struct Found {
 template <class P> struct PointMetric {
   const P &p;
   /// p is supported: then every key is finite.
-  bool supported() const { return detail::supported(double(p.x)) & detail::supported(double(p.y)); }
+  bool supported() const {
+    UnsupportedAny bad;
+    bad.pair(double(p.x), double(p.y));
+    return !bad.any();
+  }
   template <int W> double box_key(const Node<W> &node, int c) const {
     return box_key(Box{node.lo_x[c], node.lo_y[c], node.hi_x[c], node.hi_y[c]});
   }
@@ -4635,8 +4638,10 @@ template <class P> struct RayMetric {
   /// The origin and direction are supported: then a ray parameter is
   /// finite or +inf for a miss.
   bool supported() const {
-    return detail::supported(double(origin.x)) & detail::supported(double(origin.y)) &
-           detail::supported(double(direction.x)) & detail::supported(double(direction.y));
+    UnsupportedAny bad;
+    bad.pair(double(origin.x), double(origin.y));
+    bad.pair(double(direction.x), double(direction.y));
+    return !bad.any();
   }
   template <int W> double box_key(const Node<W> &node, int c) const {
     return box_key(Box{node.lo_x[c], node.lo_y[c], node.hi_x[c], node.hi_y[c]});
