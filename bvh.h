@@ -601,6 +601,153 @@ template <class Tr, class T> BVH_ALWAYS_INLINE Box box_of(const Tr &traits, cons
   return Box::from(b);
 }
 
+// ---- Supported values (docs/library.txt, SUPPORTED VALUES) ----------------
+// intersect.h is exact, and distance.h and the nearest searches' squared
+// distances stay finite, for numbers that are 0 or of magnitude in
+// [2^-200, 2^200]. The tree stores only such numbers (construct, insert,
+// update and insert_disjoint refuse others) and a query outside them finds
+// nothing, so that no answer is silently wrong.
+
+/// The least and the greatest supported magnitude besides 0.
+constexpr double kLeastSupported = 0x1p-200, kMostSupported = 0x1p200;
+
+/// 1 unless v is 0 or of magnitude in [2^-200, 2^200] (NaN and the
+/// infinities give 1), without a branch. (A double's bits without the
+/// sign order as its magnitude does, NaNs above the infinities.)
+BVH_ALWAYS_INLINE unsigned unsupported_bit(double v) {
+  std::uint64_t u;
+  std::memcpy(&u, &v, sizeof u);
+  u <<= 1; // the sign dropped
+  constexpr std::uint64_t least = std::uint64_t(1023 - 200) << 53, most = std::uint64_t(1023 + 200) << 53;
+  return unsigned(u - least > most - least) & unsigned(u != 0);
+}
+
+/// Whether any of the numbers it is given is unsupported (or a radius
+/// negative, or a box's min above its max): every number of a shape is
+/// checked, without a branch, and the answer read once. Two at a time with
+/// SSE2.
+class UnsupportedAny {
+public:
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+  BVH_ALWAYS_INLINE void pair(double a, double b) { bad_ = _mm_or_pd(bad_, lanes(_mm_set_pd(b, a))); }
+  BVH_ALWAYS_INLINE void radius(double r) {
+    const __m128d v = _mm_set1_pd(r);
+    bad_ = _mm_or_pd(bad_, _mm_or_pd(lanes(v), _mm_cmplt_pd(v, _mm_setzero_pd())));
+  }
+  BVH_ALWAYS_INLINE void box(const Box &b) {
+    const __m128d lo = _mm_set_pd(b.y0, b.x0), hi = _mm_set_pd(b.y1, b.x1);
+    bad_ = _mm_or_pd(bad_, _mm_or_pd(_mm_or_pd(lanes(lo), lanes(hi)), _mm_cmpnle_pd(lo, hi)));
+  }
+  BVH_ALWAYS_INLINE bool any() const { return _mm_movemask_pd(bad_) != 0; }
+
+private:
+  /// All ones in each lane of v that is unsupported (NaN included: the
+  /// "not less or equal" compare is true for it).
+  static BVH_ALWAYS_INLINE __m128d lanes(__m128d v) {
+    const __m128d a = _mm_andnot_pd(_mm_set1_pd(-0.0), v);
+    const __m128d big = _mm_cmpnle_pd(a, _mm_set1_pd(kMostSupported));
+    const __m128d tiny = _mm_and_pd(_mm_cmplt_pd(a, _mm_set1_pd(kLeastSupported)), _mm_cmpneq_pd(a, _mm_setzero_pd()));
+    return _mm_or_pd(big, tiny);
+  }
+  __m128d bad_ = _mm_setzero_pd();
+#else
+  BVH_ALWAYS_INLINE void pair(double a, double b) { bad_ |= unsupported_bit(a) | unsupported_bit(b); }
+  BVH_ALWAYS_INLINE void radius(double r) { bad_ |= unsupported_bit(r) | unsigned(!(r >= 0)); }
+  BVH_ALWAYS_INLINE void box(const Box &b) {
+    bad_ |= unsupported_bit(b.x0) | unsupported_bit(b.y0) | unsupported_bit(b.x1) | unsupported_bit(b.y1) |
+            unsigned(!(b.x0 <= b.x1)) | unsigned(!(b.y0 <= b.y1));
+  }
+  BVH_ALWAYS_INLINE bool any() const { return bad_ != 0; }
+
+private:
+  unsigned bad_ = 0;
+#endif
+};
+
+/// Every side supported, and min <= max on both axes.
+BVH_ALWAYS_INLINE bool supported(const Box &b) {
+  UnsupportedAny bad;
+  bad.box(b);
+  return !bad.any();
+}
+/// A side of `b` is NaN.
+inline bool has_nan(const Box &b) { return std::isnan(b.x0) || std::isnan(b.y0) || std::isnan(b.x1) || std::isnan(b.y1); }
+
+// What a shape type shows of its own numbers: points (numPoints() and
+// getPoint(i), as the course's polygons and this project's shapes), a
+// centre (getCenter()), a radius (getRadius(), or disk()->getRadius() for
+// a mixed Shape holding a disk).
+template <class S, class = void> struct ShowsPoints : std::false_type {};
+template <class S>
+struct ShowsPoints<S, std::void_t<decltype(int(std::declval<const S &>().numPoints()) +
+                                           double(std::declval<const S &>().getPoint(0).x))>> : std::true_type {};
+template <class S, class = void> struct ShowsCenter : std::false_type {};
+template <class S>
+struct ShowsCenter<S, std::void_t<decltype(double(std::declval<const S &>().getCenter().x))>> : std::true_type {};
+template <class S, class = void> struct ShowsRadius : std::false_type {};
+template <class S>
+struct ShowsRadius<S, std::void_t<decltype(double(std::declval<const S &>().getRadius()))>> : std::true_type {};
+template <class S, class = void> struct HoldsDisk : std::false_type {};
+template <class S>
+struct HoldsDisk<S, std::void_t<decltype(double(std::declval<const S &>().disk()->getRadius()))>> : std::true_type {};
+
+/// Adds the numbers a shape shows besides its box (above) to `bad`: a
+/// type that shows none (an id an adaptor reads) is judged by its box
+/// alone.
+template <class S> BVH_ALWAYS_INLINE void add_numbers(UnsupportedAny &bad, const S &s) {
+  if constexpr (ShowsPoints<S>::value) {
+    for (int i = 0, n = int(s.numPoints()); i < n; ++i) {
+      const auto &p = s.getPoint(i);
+      bad.pair(double(p.x), double(p.y));
+    }
+  } else if constexpr (ShowsRadius<S>::value && ShowsCenter<S>::value) {
+    bad.pair(double(s.getCenter().x), double(s.getCenter().y));
+  }
+  if constexpr (ShowsRadius<S>::value) {
+    bad.radius(double(s.getRadius()));
+  } else if constexpr (HoldsDisk<S>::value) {
+    if (const auto *d = s.disk()) bad.radius(double(d->getRadius()));
+  }
+}
+
+/// The tree may store `shape`, and answers a query by it: its box as the
+/// traits read it and its own numbers are supported.
+template <class Tr, class T> BVH_ALWAYS_INLINE bool supported_shape(const Tr &traits, const T &shape) {
+  UnsupportedAny bad;
+  bad.box(box_of(traits, shape));
+  add_numbers(bad, shape);
+  return !bad.any();
+}
+
+/// Throws std::invalid_argument for the shape `which` (e.g.
+/// "elements[37]") of `call`, naming its box. (Out of line: the message is
+/// built only on the error.)
+[[noreturn]]
+#if defined(__GNUC__)
+__attribute__((noinline, cold))
+#endif
+inline void refuse_unsupported(const char *call, const std::string &which, const Box &b) {
+  char box[160];
+  std::snprintf(box, sizeof box, "[<%.17g %.17g> <%.17g %.17g>]", b.x0, b.y0, b.x1, b.y1);
+  throw std::invalid_argument(std::string("bvh::BVH::") + call + ": " + which + " (box " + box +
+                              ") has a coordinate, radius or box side outside the supported range: each must "
+                              "be 0 or of magnitude in [2^-200, 2^200], and a radius not negative");
+}
+
+/// refuse_unsupported() unless supported_shape(traits, shape).
+template <class Tr, class T> void require_supported(const Tr &traits, const T &shape, const char *call) {
+  if (!supported_shape(traits, shape)) refuse_unsupported(call, "the shape", box_of(traits, shape));
+}
+
+/// refuse_unsupported() for the first of `shapes` that is not supported,
+/// named `what`[i].
+template <class Tr, class T>
+void require_supported(const Tr &traits, const std::vector<T> &shapes, const char *call, const char *what) {
+  for (std::size_t i = 0; i < shapes.size(); ++i)
+    if (!supported_shape(traits, shapes[i]))
+      refuse_unsupported(call, std::string(what) + "[" + std::to_string(i) + "]", box_of(traits, shapes[i]));
+}
+
 /// Appends `[<x0 y0> <x1 y1>]` with every number as %5.1f: the course's
 /// listing of a box, written here so that neither the stream's flags nor
 /// the shape library's printing can change it.
@@ -4475,6 +4622,12 @@ template <class T> struct Found {
 /// so never farther than the exact box).
 template <class P> struct PointMetric {
   const P &p;
+  /// p is supported: then every key is finite.
+  bool supported() const {
+    UnsupportedAny bad;
+    bad.pair(double(p.x), double(p.y));
+    return !bad.any();
+  }
   template <int W> double box_key(const Node<W> &node, int c) const {
     return box_key(Box{node.lo_x[c], node.lo_y[c], node.hi_x[c], node.hi_y[c]});
   }
@@ -4512,6 +4665,14 @@ template <class P> struct PointMetric {
 /// misses), bounded below by where it enters a child's float box.
 template <class P> struct RayMetric {
   const P &origin, &direction;
+  /// The origin and direction are supported: then a ray parameter is
+  /// finite or +inf for a miss.
+  bool supported() const {
+    UnsupportedAny bad;
+    bad.pair(double(origin.x), double(origin.y));
+    bad.pair(double(direction.x), double(direction.y));
+    return !bad.any();
+  }
   template <int W> double box_key(const Node<W> &node, int c) const {
     return box_key(Box{node.lo_x[c], node.lo_y[c], node.hi_x[c], node.hi_y[c]});
   }
@@ -4528,11 +4689,15 @@ template <class P> struct RayMetric {
 /// metric.shape_key, in increasing (key, id) order, into `found`. Nodes
 /// are taken in order of metric.box_key, a lower bound on the keys of the
 /// shapes under a child; the search stops when the next node's bound is
-/// past metric.beyond(the k-th key so far). O(log n + k) typically.
+/// past metric.beyond(the k-th key so far). O(log n + k) typically. None
+/// when the metric's point or ray is not supported; when it is, every key
+/// of a supported tree is finite (the float boxes of the nodes, fat or
+/// not, are bounded by float's range; a shape's own box by 2^201), so no
+/// shape is lost to an overflow.
 template <class T, class Tr, int W, class Metric, class Answers>
 void best_first(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k, Answers &found) {
   found.clear();
-  if (k == 0 || core.root < 0) return;
+  if (k == 0 || core.root < 0 || !metric.supported()) return;
   const double inf = std::numeric_limits<double>::infinity();
   found.reserve(std::min(k, core.size) + 1); // a max-heap of the best min(k, seen) so far
   auto bound = [&] { return found.size() < k ? inf : metric.beyond(found.front().key); };
@@ -4886,6 +5051,9 @@ template <class T, class Tr, int W> bool validate_node(const Core<T, Tr, W> &cor
     const Span<const T> shapes = core.leaves.shapes(node);
     for (const T &s : shapes) tight.extend(box_of(core.traits, s));
     count = shapes.size();
+    for (std::size_t i = 0; i < shapes.size(); ++i)
+      if (!supported_shape(core.traits, shapes[i]))
+        return why = "shape " + std::to_string(i) + " is outside the supported values", false;
     const int coded = node.coded();
     if (coded > int(count) || coded > Node<W>::kCoded) return why = "summary of more shapes than the leaf holds", false;
     // Exactly its own box's codes, not a box holding it: a disk's code
@@ -6144,15 +6312,22 @@ public:
   /// rule (the course's: see detail::CourseRule); elements[i] gets the
   /// handle id i. Basic guarantee: if it throws (a copy of a shape, or
   /// memory), the tree is left empty and valid, its parameters kept, and
-  /// every old handle is invalid.
-  void construct(const std::vector<T> &elements) { detail::construct(core_, elements); }
+  /// every old handle is invalid. An element outside the supported values
+  /// (docs/library.txt, SUPPORTED VALUES) throws std::invalid_argument
+  /// naming the first one, before anything changes.
+  void construct(const std::vector<T> &elements) {
+    detail::require_supported(core_.traits, elements, "construct", "elements");
+    detail::construct(core_, elements);
+  }
 
   /// Adds one shape (the insertion strategy: detail::insert_shape) and
   /// returns its handle. Strong: if it throws, the tree is as it was (its
   /// shapes, their order, every handle). A rebuild for balance after the
   /// insert that throws is given up: the shape is in, the subtree stays as
-  /// it was, and the exception is not passed on.
+  /// it was, and the exception is not passed on. A shape outside the
+  /// supported values throws std::invalid_argument.
   handle insert(const T &shape) {
+    detail::require_supported(core_.traits, shape, "insert");
     const bool reused = !core_.leaves.free_ids().empty();
     const std::uint32_t id = core_.leaves.new_id();
     try {
@@ -6183,8 +6358,11 @@ public:
   /// is the first candidate of the batch in progress, or the candidate whose
   /// insertion threw (with threads = 1: the candidate being decided). After
   /// a throw while several threads insert at once, it holds those shapes,
-  /// but not in the loop's shape or with the loop's handles.
+  /// but not in the loop's shape or with the loop's handles. A candidate
+  /// outside the supported values throws std::invalid_argument naming the
+  /// first one, before anything is inserted.
   std::vector<std::size_t> insert_disjoint(const std::vector<T> &candidates, unsigned threads = 0) {
+    detail::require_supported(core_.traits, candidates, "insert_disjoint", "candidates");
     struct Settle { // (the ids' room goes, also after a throw)
       detail::LeafStore<T> &leaves;
       ~Settle() { leaves.settle_ids(); }
@@ -6261,9 +6439,12 @@ public:
   /// shapes, so that small moves stay inside them. Strong, h kept: if it
   /// throws, the shape and the tree are as they were (moving out, the erase
   /// is undone; in place, T's copy then its move assignment, so strong when
-  /// that move cannot throw, else as strong as T's copy assignment).
+  /// that move cannot throw, else as strong as T's copy assignment). A
+  /// `moved` outside the supported values throws std::invalid_argument,
+  /// the tree unchanged.
   void update(handle h, const T &moved) {
     BVH_ASSERT(contains(h), "update() with a handle that names no stored shape");
+    detail::require_supported(core_.traits, moved, "update");
     detail::update_shape(core_, h.id, moved);
   }
 
@@ -6296,28 +6477,40 @@ public:
   /// True iff some stored shape intersects `shape` (touching counts).
   /// Subtrees whose box misses the shape's box are never visited; the final
   /// test is T's intersect() (for this project's shapes, intersect.h's
-  /// exact predicate; on the course's server, the course's own).
-  bool collision(const T &shape) const { return detail::collides(core_, shape); }
+  /// exact predicate; on the course's server, the course's own). False for
+  /// a shape outside the supported values.
+  bool collision(const T &shape) const {
+    return detail::supported_shape(core_.traits, shape) && detail::collides(core_, shape);
+  }
   /// collision() of each of `shapes`: element i is collision(shapes[i]).
   /// Faster than one call per shape on a tree larger than the caches: the
   /// searches run interleaved, so that their cache misses overlap
   /// (detail::collides_each).
   std::vector<bool> collisions(const std::vector<T> &shapes) const {
     std::vector<unsigned char> hit(shapes.size());
-    detail::collides_each(core_, shapes.data(), shapes.size(), hit.data());
+    bool all_supported = true;
+    for (const T &s : shapes) all_supported &= detail::supported_shape(core_.traits, s);
+    if (all_supported) detail::collides_each(core_, shapes.data(), shapes.size(), hit.data());
+    else
+      for (std::size_t i = 0; i < shapes.size(); ++i) hit[i] = collision(shapes[i]);
     return std::vector<bool>(hit.begin(), hit.end());
   }
 
   /// Calls f(shape) for every stored shape whose box overlaps `box`, of
-  /// any type box_traits understands (touching counts). If f returns bool,
-  /// returning false stops the search.
+  /// any type box_traits understands (touching counts; infinite sides
+  /// too, a NaN side meets nothing). If f returns bool, returning false
+  /// stops the search.
   template <class B, class F, if_box<B> = 0> void query(const B &box, F &&f) const {
-    detail::visit_overlapping(core_, Box::from(box), [&](const T &s) { return detail::keep_going(f, s); });
+    const Box b = Box::from(box);
+    if (detail::has_nan(b)) return;
+    detail::visit_overlapping(core_, b, [&](const T &s) { return detail::keep_going(f, s); });
   }
   /// Calls f(shape) for every stored shape that intersects `shape` (by T's
-  /// intersect(): exact, touching counts, for this project's shapes). If f
-  /// returns bool, returning false stops the search.
+  /// intersect(): exact, touching counts, for this project's shapes); none
+  /// for a shape outside the supported values. If f returns bool,
+  /// returning false stops the search.
   template <class F> void query(const T &shape, F &&f) const {
+    if (!detail::supported_shape(core_.traits, shape)) return;
     detail::visit_intersecting(core_, shape, [&](const T &s) { return detail::keep_going(f, s); });
   }
   /// Copies every stored shape that intersects `shape` to `out` (an output
@@ -6383,20 +6576,24 @@ public:
   /// search starts at once and each step runs on ++; nothing is allocated
   /// unless the tree is deeper than detail::IndexStack::kInline levels.
   overlap_range overlapping(const T &shape) const {
+    if (!detail::supported_shape(core_.traits, shape)) return overlap_range(overlap_iterator());
     return overlap_range(overlap_iterator(core_, detail::box_of(core_.traits, shape), &shape));
   }
   /// The shapes query(box, f) would pass to f (boxes that meet `box`, of
   /// any type box_traits understands).
   template <class B, if_box<B> = 0> overlap_range overlapping(const B &box) const {
-    return overlap_range(overlap_iterator(core_, Box::from(box), nullptr));
+    const Box b = Box::from(box);
+    if (detail::has_nan(b)) return overlap_range(overlap_iterator());
+    return overlap_range(overlap_iterator(core_, b, nullptr));
   }
 
   /// A stored shape at the least distance from `p` (by a free
   /// `distance(p, shape)`, as distance.h gives this project's shapes: 0 when
   /// p is inside or on it; needed only when this is used), or nullptr when
-  /// the tree is empty; `*dist` gets the distance (+inf when empty). Among
-  /// equally near shapes, the one of the smallest handle id. O(log n)
-  /// typically (detail::best_first).
+  /// the tree is empty or p is outside the supported values (a NaN, an
+  /// infinity, 1e300: docs/library.txt, SUPPORTED VALUES); `*dist` gets the
+  /// distance (+inf when none). Among equally near shapes, the one of the
+  /// smallest handle id. O(log n) typically (detail::best_first).
   const T *nearest(const Point &p, double *dist = nullptr) const {
     return best_one(detail::PointMetric<Point>{p}, dist);
   }
@@ -6411,8 +6608,8 @@ public:
   /// std::back_inserter(vector)) the min(k, size()) stored shapes nearest
   /// to `p`, by increasing distance(p, shape) (as nearest(p) measures it);
   /// among equally distant shapes the smaller handle id comes first, so the
-  /// answer is one definite list. Returns out's end. O(log n + k)
-  /// typically.
+  /// answer is one definite list (none when p is outside the supported
+  /// values). Returns out's end. O(log n + k) typically.
   template <class Out> Out nearest(const Point &p, std::size_t k, Out out) const {
     detail::InlineVector<detail::Found<T>, 16> found;
     detail::best_first(core_, detail::PointMetric<Point>{p}, k, found);
@@ -6422,9 +6619,9 @@ public:
 
   /// The first stored shape met by the ray origin + t * direction, t >= 0
   /// (t = 0 when the origin lies inside or on a shape), or nullptr when the
-  /// ray meets none; `*t` gets the ray parameter of the hit (+inf for
-  /// none). Among shapes met at the same t, the one of the smallest handle
-  /// id. Needs a free `ray_hit(origin, direction, shape)` (distance.h), only
+  /// ray meets none or the origin or direction is outside the supported
+  /// values; `*t` gets the ray parameter of the hit (+inf for none). Among
+  /// shapes met at the same t, the one of the smallest handle id. Needs a free `ray_hit(origin, direction, shape)` (distance.h), only
   /// when used.
   const T *first_hit(const Point &origin, const Point &direction, double *t = nullptr) const {
     return best_one(detail::RayMetric<Point>{origin, direction}, t);

@@ -98,7 +98,12 @@ inline double ray_hit(const Point &origin, const Point &dir, const Disk &d) {
   const double a = dir.x * dir.x + dir.y * dir.y, b = ox * dir.x + oy * dir.y;
   if (a == 0 || b >= 0) return inf; // standing still, or moving away from the centre
   const double c = ox * ox + oy * oy - r * r;
-  const double disc = b * b - a * c;
+  // b * b - a * c, written as a r^2 - cross(o, dir)^2 (the same in exact
+  // arithmetic): when the ray passes far from the centre, b * b and a * c
+  // are huge and nearly equal, and their difference could round to >= 0
+  // for a ray that misses by far.
+  const double cross = ox * dir.y - oy * dir.x;
+  const double disc = a * (r * r) - cross * cross;
   if (disc < 0) return inf;
   // The nearer root, written to avoid cancellation: c / (-b + sqrt(disc)).
   return std::max(0.0, c / (-b + std::sqrt(disc)));

@@ -155,6 +155,14 @@ bad_scene input_binary_garbage disks "\.disks:1: expected 'pt=', found byte 0x" 
 bad_scene input_huge_coordinate disks "\.disks:1: a coordinate beyond" 'pt= <1e12 2> radius= 3 color= {1 2 3}\n'
 bad_scene input_infinite_value disks "\.disks:1: a coordinate is not a finite number" 'pt= <1 inf> radius= 3 color= {1 2 3}\n'
 bad_scene input_infinite_radius disks "\.disks:1: a radius out of range" 'pt= <1 2> radius= 1e39 color= {1 2 3}\n'
+# Past float's range at either end (the library would refuse 1e300 and
+# 1e-300: outside [2^-200, 2^200]; the reader stops them first, at the line).
+bad_scene input_coordinate_1e300 triangles "\.triangles:2: a coordinate out of range: '1e300'" \
+  'pt= <1 2> pt= <3 4> pt= <5 6> color= {1 2 3}\npt= <1 2> pt= <1e300 4> pt= <5 6> color= {1 2 3}\n'
+bad_scene input_coordinate_1e-300 quads "\.quads:1: a coordinate out of range: '1e-300'" \
+  'pt= <1 2> pt= <3 4> pt= <5 6> pt= <1e-300 8> color= {1 2 3}\n'
+bad_scene input_mixed_nan_radius shapes "\.shapes:1: a radius is not a finite number: 'NaN'" \
+  'pt= <1 2> radius= NaN color= {1 2 3}\n'
 bad_scene input_missing_open_bracket disks "\.disks:1: expected '<'" 'pt= 1 2> radius= 3 color= {1 2 3}\n'
 bad_scene input_missing_open_brace quads "\.quads:1: expected '\{'" \
   'pt= <1 2> pt= <3 4> pt= <5 6> pt= <7 8> color= 1 2 3}\n'

@@ -24,6 +24,7 @@
 #include <new>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -603,28 +604,30 @@ TEST(leaf_summary_codes_keep_every_meeting_box) {
 }
 
 // The summaries inside a tree, at width 8 (frame in the links) and 7 (frame
-// after the code rows): disks of every magnitude, with zero, huge and
-// infinite radii, NaN centres and centres beyond float's range, inserted,
-// erased and moved into leaves of ordinary disks; collision() and query()
-// against a scan of the model, validate() (which checks every code) after
-// each step. The scan counts the disks whose boxes meet the probe's and
-// that intersect() it: query()'s definition, and intersect() alone within
-// intersect.h's range (magnitudes 0 or in [2^-200, 2^200]). Outside it,
-// e.g. for two points 1e-300 apart, whose squared distance underflows to
-// 0, intersect() may say that disks with disjoint boxes touch; then
-// collision(), which calls intersect() on the shapes of the leaves it
-// reaches (at widths 4 to 8 those whose code box meets the probe's), may
-// answer either way between the two counts.
+// after the code rows): disks at both ends of the supported values
+// (magnitudes 0 or in [2^-200, 2^200]), with zero, tiny and huge radii and
+// centres beyond float's range, inserted, erased and moved into leaves of
+// ordinary disks; collision() and query() against a scan of the model,
+// validate() (which checks every code) after each step. Disks outside the
+// supported values (NaN, infinite, 1e300, 1e-300) are refused by insert()
+// and update(), the tree unchanged, and as probes find nothing.
+bool model_supported(double v) { return v == 0 || (std::fabs(v) >= std::ldexp(1.0, -200) && std::fabs(v) <= std::ldexp(1.0, 200)); }
+bool model_supported(const Disk &d) {
+  const double x = d.getCenter().x, y = d.getCenter().y, r = d.getRadius();
+  return model_supported(x) && model_supported(y) && model_supported(r) && r >= 0 && model_supported(x - r) &&
+         model_supported(x + r) && model_supported(y - r) && model_supported(y + r);
+}
 template <int W> void summaries_hold_extreme_disks(unsigned seed, int split) {
   const std::string where = "seed " + std::to_string(seed) + " width " + std::to_string(W);
   note(where);
   std::mt19937_64 rng(seed);
   const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
-  const double coords[] = {0, 1e-300, -1e-46, 3.5e38, -3.5e38, 1e300, -1e300, inf, -inf, nan, 16777217.0, 0.1};
-  const double radii[] = {0, 1e-300, 0.5, 1e30, inf};
+  const double big = std::ldexp(1.0, 200), small = std::ldexp(1.0, -200);
+  const double coords[] = {0, small, -1e-46, 3.5e38, -3.5e38, 1e60, -big, big, 16777217.0, 0.1, 1e-300, 1e300, inf, nan};
+  const double radii[] = {0, small, 0.5, 1e30, big, 1e-300, inf};
   auto disk = [&](bool wild) {
     if (wild && rng() % 2)
-      return Disk(Point(coords[rng() % 12], coords[rng() % 12]), radii[rng() % 5], Color());
+      return Disk(Point(coords[rng() % 14], coords[rng() % 14]), radii[rng() % 7], Color());
     std::uniform_real_distribution<double> xy(0, 100), r(0.1, 3);
     return Disk(Point(xy(rng), xy(rng)), r(rng), Color());
   };
@@ -634,10 +637,16 @@ template <int W> void summaries_hold_extreme_disks(unsigned seed, int split) {
   std::string why;
   for (int step = 0; step < scaled(600); ++step) {
     const unsigned op = unsigned(rng() % 10);
+    std::size_t refused = 0;
     if (op < 6 || model.empty()) {
       const Disk d = disk(rng() % 8 == 0);
-      handles.push_back(tree.insert(d));
-      model.push_back(d);
+      try {
+        handles.push_back(tree.insert(d));
+        model.push_back(d);
+      } catch (const std::invalid_argument &) {
+        ++refused;
+      }
+      CHECK_EQ(refused, model_supported(d) ? 0u : 1u);
     } else if (op < 8) {
       const std::size_t i = std::size_t(rng() % model.size());
       tree.erase(handles[i]);
@@ -646,9 +655,16 @@ template <int W> void summaries_hold_extreme_disks(unsigned seed, int split) {
     } else {
       const std::size_t i = std::size_t(rng() % model.size());
       const Disk d = disk(rng() % 4 == 0);
-      tree.update(handles[i], d);
-      model[i] = d;
+      try {
+        tree.update(handles[i], d);
+        model[i] = d;
+      } catch (const std::invalid_argument &) {
+        ++refused;
+      }
+      CHECK_EQ(refused, model_supported(d) ? 0u : 1u);
+      CHECK(tree.get(handles[i]) == model[i]);
     }
+    CHECK_EQ(tree.size(), model.size());
     if (!tree.validate(&why)) {
       note(where + " step " + std::to_string(step) + ": " + why);
       CHECK(false);
@@ -663,10 +679,10 @@ template <int W> void summaries_hold_extreme_disks(unsigned seed, int split) {
       expected += meets && bvh::detail::Box::from(d.getBox()).overlaps(probe_box) ? 1 : 0;
     }
     tree.query(probe, [&](const Disk &) { ++found; });
+    if (!model_supported(probe)) expected = touching = 0;
     CHECK_EQ(found, expected);
-    const bool collision = tree.collision(probe);
-    CHECK(collision || expected == 0);
-    CHECK(!collision || touching != 0);
+    CHECK_EQ(found, touching); // (within the supported values intersecting disks' boxes meet)
+    CHECK_EQ(tree.collision(probe), touching != 0);
   }
 }
 TEST(leaf_summaries_hold_extreme_disks) {
@@ -872,47 +888,47 @@ TEST(collisions_near_tangency_equal_brute_force) {
   collisions_near_tangency<4>(base_seed() + 16);
 }
 
-// A tree of one shape whose box has a NaN side: its root's box must be
-// the union every other path computes (a NaN side stays out of it), which
-// validate() checks, however the shape came to be alone: inserted first,
-// moved by update(), the survivor of an erase, or a sampling's first.
-// (Found by a seed of the test above: the lone-shape paths stored the
-// shape's box itself.)
+// A shape whose box has a NaN side is refused on every path that could
+// have left it alone in a tree (inserted first, moved by update(), a
+// sampling's first): the tree stays as it was and valid. (These paths
+// once stored such a box as the root's.)
 template <int W> void lone_shape_with_nan_side(double margin) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const Disk odd(Point(nan, -1e300), 1e30), plain(Point(26, 22), 0.8), other(Point(60, 70), 2);
   using Tree = BVH<Disk, bvh::shape_traits<Disk>, W>;
   std::string why;
-  const auto valid = [&](const Tree &t, const char *how) {
+  const auto refused = [&](Tree &t, auto change, const char *how, std::size_t size) {
     note(std::string(how) + " width " + std::to_string(W) + " margin " + std::to_string(margin));
+    bool threw = false;
+    try {
+      change(t);
+    } catch (const std::invalid_argument &) {
+      threw = true;
+    }
+    CHECK(threw);
     CHECK(t.validate(&why));
-    CHECK_EQ(t.size(), std::size_t(1));
+    CHECK_EQ(t.size(), size);
     CHECK(why.empty());
     why.clear();
   };
   Tree first(W == 3 ? 4 : 16);
   first.set_margin(margin);
-  first.insert(odd);
-  valid(first, "inserted first");
+  refused(first, [&](Tree &t) { t.insert(odd); }, "inserted first", 0);
   Tree moved(W == 3 ? 4 : 16);
   moved.set_margin(margin);
-  moved.update(moved.insert(plain), odd);
-  valid(moved, "updated alone");
-  Tree left(W == 3 ? 4 : 16);
-  left.set_margin(margin);
-  left.insert(odd);
-  left.erase(left.insert(other));
-  valid(left, "left by an erase");
+  const auto h = moved.insert(plain);
+  refused(moved, [&](Tree &t) { t.update(h, odd); }, "updated alone", 1);
+  CHECK(moved.get(h) == plain);
   Tree sampled(W == 3 ? 4 : 16);
   sampled.set_margin(margin);
-  sampled.insert_disjoint(std::vector<Disk>{odd}, 1);
-  valid(sampled, "sampled");
-  // and one more shape beside it, by insert, still valid
+  refused(sampled, [&](Tree &t) { t.insert_disjoint(std::vector<Disk>{odd}, 1); }, "sampled", 0);
+  // and the ordinary shapes beside it still go in
   first.insert(plain);
+  first.insert(other);
   CHECK(first.validate());
   CHECK(first.collision(plain));
 }
-TEST(a_lone_shape_with_a_nan_side_has_a_fitted_root_box) {
+TEST(a_shape_with_a_nan_side_is_refused_on_every_path) {
   lone_shape_with_nan_side<3>(0);
   lone_shape_with_nan_side<3>(0.5);
   lone_shape_with_nan_side<8>(0);

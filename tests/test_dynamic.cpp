@@ -19,6 +19,7 @@
 #include <limits>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <utility>
@@ -1277,6 +1278,306 @@ TEST(choose_child_least_growth_ties_and_nan_at_widths_3_4_5_8) {
   choose_child_rule<4>();
   choose_child_rule<5>();
   choose_child_rule<8>();
+}
+
+// ---- Values outside the supported range (docs/library.txt, SUPPORTED VALUES)
+//
+// Every coordinate, radius and box side the tree stores must be 0 or of
+// magnitude in [2^-200, 2^200] (intersect.h's range); construct, insert,
+// update and insert_disjoint refuse anything else with
+// std::invalid_argument, the tree unchanged. A query whose point,
+// direction or probe shape is outside that range finds nothing; a box query
+// answers any box without a NaN side. The model here is written apart from
+// bvh.h's check: plain comparisons of each number.
+
+bool model_supported(double v) { return v == 0 || (std::fabs(v) >= std::ldexp(1.0, -200) && std::fabs(v) <= std::ldexp(1.0, 200)); }
+bool model_supported(const Disk &d) {
+  const double x = d.getCenter().x, y = d.getCenter().y, r = d.getRadius();
+  return model_supported(x) && model_supported(y) && model_supported(r) && r >= 0 && model_supported(x - r) &&
+         model_supported(x + r) && model_supported(y - r) && model_supported(y + r);
+}
+
+/// Calls f, which must throw std::invalid_argument whose message holds
+/// `names`; false (with a note) otherwise.
+template <class F> bool refuses(F &&f, const std::string &names, const std::string &what) {
+  try {
+    f();
+  } catch (const std::invalid_argument &e) {
+    if (std::string(e.what()).find(names) != std::string::npos) return true;
+    note(what + ": the message does not name '" + names + "': " + e.what());
+    return false;
+  }
+  note(what + ": accepted");
+  return false;
+}
+
+/// The tree's shapes, in iteration order, with their handles' ids.
+template <class Tree> std::vector<std::pair<std::uint32_t, Disk>> contents(const Tree &t) {
+  std::vector<std::pair<std::uint32_t, Disk>> out;
+  for (auto it = t.begin(); it != t.end(); ++it) out.emplace_back(it.id().id, *it);
+  return out;
+}
+
+template <int W> void unsupported_values_are_refused(unsigned seed) {
+  using Tree = BVH<Disk, bvh::shape_traits<Disk>, W>;
+  note("seed " + std::to_string(seed) + " width " + std::to_string(W));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> xy(0, 1000), r(1, 20);
+  std::vector<Disk> scene;
+  for (int i = 0; i < 50; ++i) scene.push_back(Disk(Point(xy(rng), xy(rng)), r(rng), Color()));
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  const double big = std::ldexp(1.0, 200), small = std::ldexp(1.0, -200);
+  // The cases first (a NaN centre, infinite centres, x = 1.5e308,
+  // the 1e-300 and 1e160 scales), then each number at and past each end.
+  const std::vector<Disk> bad = {
+      Disk(Point(nan, 0), 1, Color()),      Disk(Point(inf, 0), 1, Color()),          Disk(Point(-inf, 5), 1, Color()),
+      Disk(Point(1.5e308, 0), 1, Color()),  Disk(Point(3e-300, 5e-300), 1e-300, Color()), Disk(Point(1e160, 1e160), 1, Color()),
+      Disk(Point(5, 5), nan, Color()),      Disk(Point(5, 5), inf, Color()),          Disk(Point(5, 5), -1, Color()),
+      Disk(Point(5, 5), 1e-300, Color()),   Disk(Point(5, nan), 1, Color()),          Disk(Point(2 * big, 0), 0, Color()),
+      Disk(Point(small / 2, 0), 0, Color()), Disk(Point(big, 0), big, Color()), // (its box's right side is 2^201)
+  };
+  const std::vector<Disk> good = {Disk(Point(big, -big), 0, Color()), Disk(Point(small, -small), small, Color()),
+                                  Disk(Point(0, 0), 0, Color()), Disk(Point(-1e-46, 3.5e38), 1e30, Color())};
+  for (const Disk &d : bad) CHECK(!model_supported(d));
+  for (const Disk &d : good) CHECK(model_supported(d));
+  for (std::size_t b = 0; b < bad.size(); ++b) {
+    const Disk &d = bad[b];
+    const std::string which = "bad disk " + std::to_string(b);
+    Tree tree(4);
+    std::vector<typename Tree::handle> handles;
+    for (const Disk &s : scene) handles.push_back(tree.insert(s));
+    const auto before = contents(tree);
+    const auto kept = [&](const char *after) {
+      note(which + " after " + after);
+      CHECK(tree.validate());
+      CHECK(contents(tree) == before);
+    };
+    CHECK(refuses([&] { tree.insert(d); }, "insert", which + " insert"));
+    kept("insert");
+    CHECK(refuses([&] { tree.update(handles[7], d); }, "update", which + " update"));
+    kept("update");
+    CHECK(tree.get(handles[7]) == scene[7]);
+    std::vector<Disk> with = scene;
+    with.insert(with.begin() + 37, d);
+    with.push_back(d); // two among 52, as the infinite centres
+    CHECK(refuses([&] { tree.construct(with); }, "elements[37]", which + " construct"));
+    kept("construct");
+    std::vector<Disk> candidates = {Disk(Point(-500, -500), 1, Color()), Disk(Point(-600, -600), 1, Color()), d};
+    CHECK(refuses([&] { tree.insert_disjoint(candidates, 1); }, "candidates[2]", which + " insert_disjoint"));
+    kept("insert_disjoint");
+    CHECK(refuses([&] { tree.insert_disjoint(candidates, 2); }, "candidates[2]", which + " insert_disjoint on two"));
+    kept("insert_disjoint on two");
+    // Into an empty tree too (its first shape takes another path).
+    Tree empty(4);
+    CHECK(refuses([&] { empty.insert(d); }, "insert", which + " insert into an empty tree"));
+    CHECK(empty.empty() && empty.validate());
+    CHECK(refuses([&] { empty.construct({d}); }, "elements[0]", which + " construct of one"));
+    CHECK(empty.empty() && empty.validate());
+  }
+  // The ends of the range are taken, and answered as a scan answers.
+  Tree tree(4);
+  std::vector<Disk> stored = scene;
+  stored.insert(stored.end(), good.begin(), good.end());
+  tree.construct(stored);
+  CHECK_EQ(tree.size(), stored.size());
+  for (const Disk &g : good) {
+    std::size_t want = 0, got = 0;
+    for (const Disk &s : stored) want += intersect(s, g) ? 1 : 0;
+    tree.query(g, [&](const Disk &) { ++got; });
+    CHECK_EQ(got, want);
+  }
+  std::vector<typename Tree::neighbor> near;
+  tree.nearest(Point(-big, big), stored.size() + 3, std::back_inserter(near));
+  CHECK_EQ(near.size(), stored.size());
+}
+TEST(unsupported_values_are_refused_where_they_enter_widths_3_and_8) {
+  unsupported_values_are_refused<3>(base_seed() + 3100);
+  unsupported_values_are_refused<8>(base_seed() + 3101);
+}
+
+// Mixed scenes and polygons: a vertex that is not on the box (so the box
+// alone would pass) still counts.
+TEST(unsupported_polygon_vertices_and_shapes_are_refused) {
+  const Triangle tiny_inside(Point(-1, -1), Point(1, 1), Point(1e-300, 0.5), Color());
+  BVH<Triangle> triangles;
+  CHECK(refuses([&] { triangles.insert(tiny_inside); }, "insert", "triangle with a vertex at 1e-300"));
+  CHECK(triangles.empty());
+  BVH<Shape, bvh::shape_traits<Shape>, 8> mixed;
+  mixed.insert(Shape(Disk(Point(1, 1), 1, Color())));
+  CHECK(refuses([&] { mixed.insert(Shape(Disk(Point(1, 1), 1e-300, Color()))); }, "insert", "shape: disk radius 1e-300"));
+  CHECK(refuses([&] { mixed.insert(Shape(tiny_inside)); }, "insert", "shape: triangle"));
+  CHECK_EQ(mixed.size(), std::size_t(1));
+  CHECK(mixed.validate());
+}
+
+template <int W> void unsupported_queries_find_nothing(unsigned seed) {
+  using Tree = BVH<Disk, bvh::shape_traits<Disk>, W>;
+  note("seed " + std::to_string(seed) + " width " + std::to_string(W));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> xy(0, 1000), r(1, 20);
+  std::vector<Disk> scene;
+  for (int i = 0; i < 60; ++i) scene.push_back(Disk(Point(xy(rng), xy(rng)), r(rng), Color()));
+  scene.push_back(Disk(Point(0, 0), 5, Color())); // holds the origin, so a wrong t = 0 shows
+  Tree tree(4);
+  tree.construct(scene);
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  const std::vector<Point> points = {Point(nan, 0), Point(0, nan), Point(inf, 0), Point(-inf, 500), Point(1e160, 0),
+                                     Point(0, -1.5e308), Point(1e-300, 500)};
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Point &p = points[i];
+    note("point " + std::to_string(i));
+    double d = -1;
+    CHECK(tree.nearest(p, &d) == nullptr);
+    CHECK_EQ(d, inf);
+    std::vector<typename Tree::neighbor> near;
+    tree.nearest(p, 5, std::back_inserter(near));
+    CHECK(near.empty());
+    double t = -1;
+    CHECK(tree.first_hit(p, Point(1, 0), &t) == nullptr); // as origin
+    CHECK_EQ(t, inf);
+    CHECK(tree.first_hit(Point(0, 0), p) == nullptr); // as direction
+    CHECK(tree.first_hit(Point(-100, 0), p) == nullptr);
+    const Disk probe(p, 10, Color());
+    CHECK(!tree.collision(probe));
+    std::size_t found = 0;
+    tree.query(probe, [&](const Disk &) { ++found; });
+    for (const Disk &s : tree.overlapping(probe)) found += s.getRadius() >= 0 ? 1 : 1;
+    CHECK_EQ(found, std::size_t(0));
+    const std::vector<bool> hits = tree.collisions({probe, scene[3], probe});
+    CHECK(hits == (std::vector<bool>{false, true, false}));
+  }
+  // Probe shapes whose centre is fine but whose radius is not.
+  for (const double radius : {nan, inf, -1.0, 1e-300, 1e300}) {
+    const Disk probe(scene[3].getCenter(), radius, Color());
+    CHECK(!tree.collision(probe));
+    std::size_t found = 0;
+    tree.query(probe, [&](const Disk &) { ++found; });
+    CHECK_EQ(found, std::size_t(0));
+  }
+  // Box queries: a NaN side finds nothing; infinite sides are exact.
+  std::size_t found = 0;
+  // (bvh::bounds: BoundingBox's constructor orders its corners by min and
+  // max, which may drop a NaN)
+  tree.query(bvh::bounds{nan, 0, 1000, 1000}, [&](const Disk &) { ++found; });
+  for (const Disk &s : tree.overlapping(bvh::bounds{0, 0, 1000, nan})) found += s.getRadius() >= 0 ? 1 : 1;
+  CHECK_EQ(found, std::size_t(0));
+  tree.query(BoundingBox(Point(-inf, -inf), Point(inf, inf)), [&](const Disk &) { ++found; });
+  CHECK_EQ(found, scene.size());
+  found = 0;
+  for (const Disk &s : tree.overlapping(BoundingBox(Point(-inf, 400), Point(inf, 600))))
+    found += s.getBox().getMax().y >= 400 && s.getBox().getMin().y <= 600 ? 1 : 1000;
+  std::size_t want = 0;
+  for (const Disk &s : scene) want += s.getBox().getMax().y >= 400 && s.getBox().getMin().y <= 600 ? 1 : 0;
+  CHECK_EQ(found, want);
+}
+TEST(queries_with_unsupported_values_find_nothing_widths_3_and_8) {
+  unsupported_queries_find_nothing<3>(base_seed() + 3200);
+  unsupported_queries_find_nothing<8>(base_seed() + 3201);
+}
+
+// nearest(p, k) gives min(k, size()) answers, the model's, and all pairs
+// the scan's count, on scenes spread over the whole supported range: every
+// number a sign times 2^e for e in [-200, 199] times a mantissa in [1, 2),
+// or 0; points likewise. (Scenes at one scale, 1e-300 or 1e160, are
+// refused above; here each scale is the extreme one inside.)
+template <int W> void whole_range_against_model(unsigned seed) {
+  using Tree = BVH<Disk, bvh::shape_traits<Disk>, W>;
+  std::mt19937 rng(seed);
+  auto number = [&](int lo, int hi) {
+    if (rng() % 16 == 0) return 0.0;
+    const int e = lo + int(rng() % unsigned(hi - lo + 1));
+    const double m = 1 + double(rng() % 1024) / 1024;
+    return (rng() % 2 ? -1 : 1) * std::ldexp(m, e);
+  };
+  int rounds_with_pairs = 0;
+  for (int round = 0; round < scaled(40); ++round) {
+    note(seed_note(seed, round, "disks, width " + std::to_string(W)));
+    // One scale a round (so that disks meet), sometimes every scale at once.
+    const bool all_scales = round % 4 == 0;
+    const int e = -200 + int(rng() % 390);
+    std::vector<Disk> scene;
+    while (scene.size() < 40) {
+      const int lo = all_scales ? -200 : e, hi = all_scales ? 198 : e + 1;
+      const Disk d(Point(number(lo, hi), number(lo, hi)), std::fabs(number(lo, hi)), Color());
+      if (model_supported(d)) scene.push_back(d);
+    }
+    Tree tree(2 + int(rng() % 4));
+    if (round % 2) tree.construct(scene);
+    else
+      for (const Disk &d : scene) tree.insert(d);
+    std::size_t pairs = 0;
+    for (std::size_t i = 0; i < scene.size(); ++i)
+      for (std::size_t j = i + 1; j < scene.size(); ++j) pairs += intersect(scene[i], scene[j]) ? 1 : 0;
+    CHECK_EQ(tree.count_overlapping_pairs(), pairs);
+    rounds_with_pairs += pairs > 0 ? 1 : 0;
+    for (int q = 0; q < 8; ++q) {
+      const int lo = all_scales ? -200 : e, hi = all_scales ? 199 : e + 1;
+      const Point p(number(lo, hi), number(lo, hi));
+      const std::size_t k = 1 + rng() % 50;
+      std::vector<typename Tree::neighbor> near;
+      tree.nearest(p, k, std::back_inserter(near));
+      std::vector<std::pair<double, std::uint32_t>> want;
+      for (std::size_t i = 0; i < scene.size(); ++i) want.emplace_back(distance(p, scene[i]), std::uint32_t(i));
+      std::sort(want.begin(), want.end());
+      want.resize(std::min(k, want.size()));
+      CHECK_EQ(near.size(), want.size());
+      for (std::size_t i = 0; i < near.size() && i < want.size(); ++i) {
+        CHECK_EQ(near[i].distance, want[i].first);
+        CHECK_EQ(near[i].id.id, want[i].second);
+      }
+      double d = -1;
+      const Disk *one = tree.nearest(p, &d);
+      CHECK(one != nullptr);
+      CHECK_EQ(d, want[0].first);
+      // first_hit along a direction of any supported size
+      const Point dir(number(-200, 199), number(-200, 199));
+      std::pair<double, std::uint32_t> hit(std::numeric_limits<double>::infinity(), 0);
+      for (std::size_t i = 0; i < scene.size(); ++i) hit = std::min(hit, std::make_pair(ray_hit(p, dir, scene[i]), std::uint32_t(i)));
+      double t = -1;
+      const Disk *first = tree.first_hit(p, dir, &t);
+      CHECK_EQ(t, hit.first);
+      CHECK_EQ(first != nullptr, hit.first < std::numeric_limits<double>::infinity());
+      if (first) CHECK(*first == scene[hit.second]);
+    }
+  }
+  CHECK(rounds_with_pairs > scaled(40) / 4);
+}
+TEST(nearest_and_pairs_over_the_whole_supported_range_widths_3_and_8) {
+  whole_range_against_model<3>(base_seed() + 3300);
+  whole_range_against_model<8>(base_seed() + 3301);
+}
+
+// A margin is not a shape's value: 2^200 and 1e300 are taken as they are,
+// and every answer stays the scan's (the searches read the nodes' float
+// boxes, whose range bounds a fat box).
+template <int W> void huge_margin_keeps_every_answer(unsigned seed) {
+  using Tree = BVH<Disk, bvh::shape_traits<Disk>, W>;
+  note("seed " + std::to_string(seed) + " width " + std::to_string(W));
+  Maker make(seed);
+  const std::vector<Disk> scene = make.scene<Disk>(60, 30);
+  for (const double m : {1e300, std::ldexp(1.0, 200)}) {
+    Tree tree(4);
+    tree.set_margin(m);
+    for (const Disk &d : scene) tree.insert(d);
+    CHECK_EQ(tree.margin(), m);
+    CHECK(tree.validate());
+    std::vector<typename Tree::neighbor> near;
+    tree.nearest(Point(500, 500), scene.size(), std::back_inserter(near));
+    CHECK_EQ(near.size(), scene.size());
+    CHECK(tree.nearest(Point(-3, 7)) != nullptr);
+    double first = std::numeric_limits<double>::infinity(), t = -1;
+    for (const Disk &d : scene) first = std::min(first, ray_hit(Point(-100, 500), Point(1, 0.01), d));
+    CHECK_EQ(tree.first_hit(Point(-100, 500), Point(1, 0.01), &t) != nullptr, first < std::numeric_limits<double>::infinity());
+    CHECK_EQ(t, first);
+    std::size_t pairs = 0;
+    for (std::size_t i = 0; i < scene.size(); ++i)
+      for (std::size_t j = i + 1; j < scene.size(); ++j) pairs += intersect(scene[i], scene[j]) ? 1 : 0;
+    CHECK_EQ(tree.count_overlapping_pairs(), pairs);
+  }
+}
+TEST(huge_margins_keep_every_answer_widths_3_and_8) {
+  huge_margin_keeps_every_answer<3>(base_seed() + 3400);
+  huge_margin_keeps_every_answer<8>(base_seed() + 3401);
 }
 
 } // namespace
