@@ -6079,7 +6079,7 @@ public:
     std::size_t leaf_slack = 0; ///< leaf pool places holding no shape (room in slots, free slots, blocks not yet filled), with their ids' places
     std::size_t pool_index = 0; ///< the leaf pool's bookkeeping: slot sizes, free-slot lists, block tables
     std::size_t handles = 0;    ///< the handle table (id -> leaf and position), 0 until a handle is first looked up
-    std::size_t free_ids = 0;   ///< the ids given back, kept for later inserts, with their room
+    std::size_t free_ids = 0;   ///< the ids given back, with their room, and each id's generation once a shape is erased
     std::size_t scratch = 0;    ///< build memory kept for the next split or rebuild (the largest one's)
     /// Not held now: what construct() of size() shapes holds besides the
     /// finished tree while it runs, and gives back when it returns: a copy
