@@ -4954,7 +4954,8 @@ template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, st
   if (core.root < 0) {
     if (core.size != 0) return fail(-1, "empty tree with size " + std::to_string(core.size));
     if (nodes.live() != 0) return fail(-1, "empty tree with live nodes");
-    if (core.leaves.id_count() != 0 || !core.leaves.free_ids().empty()) return fail(-1, "empty tree with ids");
+    if (core.leaves.id_count() != 0 || !core.leaves.free_ids().empty() || !core.leaves.generations().empty())
+      return fail(-1, "empty tree with ids");
     if (core.leaves.located()) return fail(-1, "empty tree with a handle table");
     return true;
   }
