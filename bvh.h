@@ -3961,9 +3961,9 @@ template <class T> void assign(T &dst, const T &src) {
 
 /// The shape of `id`, stored at `at`, becomes `moved`: in place while it
 /// fits its leaf's box (refitting above when there is no margin), else
-/// erased and inserted again under the same id. Strong (in place: when T's move assignment
-/// cannot throw, else as strong as T's copy assignment): if the insert
-/// throws, the erase is undone.
+/// erased and inserted again under the same id. Strong (in place: when T's
+/// move assignment cannot throw, else as strong as T's copy assignment):
+/// if the insert throws, the erase is undone.
 template <class T, class Tr, int W>
 void update_shape(Core<T, Tr, W> &core, std::uint32_t id, typename LeafStore<T>::Loc at, const T &moved) {
   NodeStore<W> &nodes = core.nodes;
