@@ -158,7 +158,8 @@ TEST(handles_survive_at_width_8_with_wide_leaves) {
 /// Stale handles against a brute-force model: every handle the tree ever
 /// gave (by insert(), construct(), iterator::id(), nearest()) is kept, live
 /// or not, and after each random step (insert, erase by handle and by
-/// iterator, update, emptying the tree, construct, clear, a copy) contains()
+/// iterator, update, emptying the tree, construct, clear, a copy,
+/// insert_disjoint) contains()
 /// is true exactly for the live ones, which get() and find() answer
 /// rightly. A new handle equals no handle given before, although its id is
 /// the last one freed (the model's free list says which).
@@ -245,6 +246,16 @@ template <int W> void stale_handles_against_a_model(unsigned seed, int steps) {
       forget_all();
     } else if (op < 95) {
       tree = Tree(tree); // handles name the same shapes in a copy
+    } else if (op < 97) { // the loop's ids, hence reused ones too, each with a new handle
+      const std::vector<Disk> c = make.scene<Disk>(int(rng() % 8), 8);
+      for (std::size_t k : tree.insert_disjoint(c, 1 + unsigned(rng() % 2))) {
+        Handle h{};
+        int found = 0;
+        for (auto it = tree.begin(); it != tree.end(); ++it)
+          if (*it == c[k] && live.count(key(it.id())) == 0) h = it.id(), ++found;
+        CHECK_EQ(found, 1);
+        took(h, c[k]);
+      }
     } else if (!live.empty()) { // nearest() gives handles too
       std::vector<typename Tree::neighbor> near;
       tree.nearest(d.getCenter(), 3, std::back_inserter(near));
