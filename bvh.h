@@ -2079,7 +2079,9 @@ public:
 
   LeafStore() = default;
   /// Deep copy, with the table if it is built.
-  LeafStore(const LeafStore &o) : pool_(o.pool_), free_ids_(o.free_ids_), id_count_(o.id_count_) {
+  LeafStore(const LeafStore &o)
+      : pool_(o.pool_), free_ids_(o.free_ids_), id_count_(o.id_count_), generations_(o.generations_),
+        fresh_generation_(o.fresh_generation_), constructed_generation_(o.constructed_generation_) {
     if (o.located()) {
       loc_ = o.loc_;
       located_.store(true, std::memory_order_relaxed);
@@ -2207,7 +2209,9 @@ public:
     if (id_count_ == std::size_t(std::numeric_limits<std::uint32_t>::max()))
       throw std::length_error("BVH::insert: more shapes than 32-bit handles can name");
     reserve_for(free_ids_, std::min(id_count_ + 1, free_ids_.size() + pending_ + 1));
+    if (!generations_.empty()) reserve_for(generations_, id_count_ + 1);
     if (built()) loc_.push_back(Loc{});
+    if (!generations_.empty()) generations_.push_back(fresh_generation_); // (room reserved: never throws)
     ++pending_;
     return std::uint32_t(id_count_++);
   }
@@ -2220,6 +2224,7 @@ public:
       free_ids_.push_back(id); // (never allocates: new_id() took it from there)
     } else {
       if (built()) loc_.pop_back();
+      if (!generations_.empty()) generations_.pop_back();
       --id_count_;
     }
   }
@@ -2237,15 +2242,22 @@ public:
   }
   /// Ids 0 .. n - 1 taken, for construct() (the store holds no id).
   void take_first_ids(std::size_t n) {
-    BVH_INVARIANT(id_count_ == 0, "construct() over ids in use");
+    BVH_INVARIANT(id_count_ == 0 && generations_.empty(), "construct() over ids in use");
     if (built()) loc_.resize(n);
     id_count_ = n;
+    constructed_generation_ = fresh_generation_;
   }
-  /// Room for giving one more id back (before an erase, whose free_id()
-  /// must not allocate). Strong.
-  void reserve_id_back() { reserve_for(free_ids_, std::min(id_count_, free_ids_.size() + pending_ + 1)); }
+  /// Room for giving one more id back (before an erase, whose
+  /// free_erased_id() must not allocate), with every id's generation.
+  /// Strong.
+  void reserve_id_back() {
+    reserve_for(free_ids_, std::min(id_count_, free_ids_.size() + pending_ + 1));
+    if (generations_.empty()) generations_.assign(id_count_, fresh_generation_);
+  }
   /// Gives `id` back (room for it was made: new_id(), reserve_id_back());
-  /// `none_stored`: the tree is empty, so every id is forgotten.
+  /// `none_stored`: the tree is empty, so every id is forgotten. Only for
+  /// an id no handle was given for (an insert that failed, or one
+  /// insert_disjoint took but did not use): its generation stays.
   void free_id(std::uint32_t id, bool none_stored) noexcept {
     if (none_stored) {
       forget_ids();
@@ -2254,6 +2266,29 @@ public:
     if (built()) loc_[id].leaf = -1;
     BVH_INVARIANT(free_ids_.size() < free_ids_.capacity(), "an id given back without room for it");
     free_ids_.push_back(id);
+  }
+  /// free_id() for the id of an erased shape (after reserve_id_back()):
+  /// its generation goes up, so that its handles are stale from now on,
+  /// also once a later insert reuses the id.
+  void free_erased_id(std::uint32_t id, bool none_stored) noexcept {
+    if (!none_stored) {
+      BVH_INVARIANT(id < generations_.size(), "an id given back without its generation");
+      ++generations_[id];
+    }
+    free_id(id, none_stored);
+  }
+  /// The generation of `id` (one in use or free): a handle carries its
+  /// id's generation when given, and names no shape once they differ.
+  std::uint32_t generation(std::uint32_t id) const noexcept {
+    return generations_.empty() ? fresh_generation_ : generations_[id];
+  }
+  /// The generation construct() gave ids 0 .. n - 1 (take_first_ids).
+  std::uint32_t constructed_generation() const noexcept { return constructed_generation_; }
+  /// True when `id` with `generation` names a stored shape (find()).
+  template <int W>
+  bool find(const NodeStore<W> &nodes, int root, std::uint32_t id, std::uint32_t generation, Loc *at) const noexcept {
+    if (id >= id_count_ || this->generation(id) != generation) return false;
+    return find(nodes, root, id, at);
   }
 
   /// True once the table is built: then contains() and locate() answer.
@@ -2319,7 +2354,11 @@ public:
   const std::vector<std::uint32_t> &free_ids() const { return free_ids_; }
   /// Bytes of the table (0 while it is not built) and of the free ids.
   std::size_t table_bytes() const noexcept { return located() ? loc_.capacity() * sizeof(Loc) : 0; }
-  std::size_t free_id_bytes() const noexcept { return free_ids_.capacity() * sizeof(std::uint32_t); }
+  std::size_t free_id_bytes() const noexcept {
+    return (free_ids_.capacity() + generations_.capacity()) * sizeof(std::uint32_t);
+  }
+  /// The generation by id (empty while every id's is the same).
+  const std::vector<std::uint32_t> &generations() const { return generations_; }
   /// The pool's bytes (LeafPool::bytes).
   typename LeafPool<T>::Bytes pool_bytes() const { return pool_.bytes(); }
 
@@ -2344,6 +2383,9 @@ public:
     free_ids_.swap(o.free_ids_);
     std::swap(id_count_, o.id_count_);
     std::swap(pending_, o.pending_);
+    generations_.swap(o.generations_);
+    std::swap(fresh_generation_, o.fresh_generation_);
+    std::swap(constructed_generation_, o.constructed_generation_);
     const bool was = built();
     located_.store(o.built(), std::memory_order_relaxed);
     o.located_.store(was, std::memory_order_relaxed);
@@ -2356,8 +2398,16 @@ private:
   }
   /// The table is built (for the changes, which no reader runs beside).
   bool built() const noexcept { return located_.load(std::memory_order_relaxed); }
-  /// Every id forgotten, the table unbuilt, their memory given back.
+  /// Every id forgotten, the table unbuilt, their memory given back. The
+  /// ids given from now on start at a generation above every one given
+  /// before, so that no old handle names a shape stored later.
   void forget_ids() noexcept {
+    if (id_count_ != 0) {
+      std::uint32_t newest = fresh_generation_;
+      for (std::uint32_t g : generations_) newest = std::max(newest, g);
+      fresh_generation_ = newest + 1;
+    }
+    std::vector<std::uint32_t>().swap(generations_);
     std::vector<Loc>().swap(loc_);
     std::vector<std::uint32_t>().swap(free_ids_);
     id_count_ = 0;
@@ -2369,6 +2419,12 @@ private:
   std::vector<std::uint32_t> free_ids_; // ids given back, reused first
   std::size_t id_count_ = 0;            // ids in use or free: 0 .. id_count_ - 1
   std::size_t pending_ = 0;             // ids new_id() gave since settle_ids()
+  // Each id's generation (what its handles carry), raised when its shape is
+  // erased; empty until an id is given back after an erase (every id's is
+  // then fresh_generation_), so a tree never erased from keeps none.
+  std::vector<std::uint32_t> generations_;
+  std::uint32_t fresh_generation_ = 0;       // of the ids not given back since all were last forgotten
+  std::uint32_t constructed_generation_ = 0; // of the ids construct() gave last
   // The table: by id, where its shape is; built by a const lookup, hence
   // mutable, and published by located_ (release) once complete.
   mutable std::vector<Loc> loc_;
@@ -4065,7 +4121,7 @@ void erase_shape(Core<T, Tr, W> &core, int leaf, std::size_t index, Cut how) {
     id = erase_at(core, leaf, index, how, &changed);
     rebalance(core, find_scapegoat(core, changed, -1, true), how);
   }
-  core.leaves.free_id(id, core.size == 0);
+  core.leaves.free_erased_id(id, core.size == 0);
 }
 
 /// dst = src, strong when T's move assignment cannot throw (a copy, then
@@ -4079,13 +4135,13 @@ template <class T> void assign(T &dst, const T &src) {
   }
 }
 
-/// The shape of `id` becomes `moved`: in place while it fits its leaf's
-/// box (refitting above when there is no margin), else erased and inserted
-/// again under the same id. Strong (in place: when T's move assignment
-/// cannot throw, else as strong as T's copy assignment): if the insert
-/// throws, the erase is undone.
-template <class T, class Tr, int W> void update_shape(Core<T, Tr, W> &core, std::uint32_t id, const T &moved) {
-  const typename LeafStore<T>::Loc at = core.locate(id);
+/// The shape of `id`, stored at `at`, becomes `moved`: in place while it
+/// fits its leaf's box (refitting above when there is no margin), else
+/// erased and inserted again under the same id. Strong (in place: when T's
+/// move assignment cannot throw, else as strong as T's copy assignment):
+/// if the insert throws, the erase is undone.
+template <class T, class Tr, int W>
+void update_shape(Core<T, Tr, W> &core, std::uint32_t id, typename LeafStore<T>::Loc at, const T &moved) {
   NodeStore<W> &nodes = core.nodes;
   const Box box = box_of(core.traits, moved);
   if (nodes.box(at.leaf).contains(box) || core.size == 1) {
@@ -5108,7 +5164,8 @@ template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, st
   if (core.root < 0) {
     if (core.size != 0) return fail(-1, "empty tree with size " + std::to_string(core.size));
     if (nodes.live() != 0) return fail(-1, "empty tree with live nodes");
-    if (core.leaves.id_count() != 0 || !core.leaves.free_ids().empty()) return fail(-1, "empty tree with ids");
+    if (core.leaves.id_count() != 0 || !core.leaves.free_ids().empty() || !core.leaves.generations().empty())
+      return fail(-1, "empty tree with ids");
     if (core.leaves.located()) return fail(-1, "empty tree with a handle table");
     return true;
   }
@@ -5155,6 +5212,8 @@ template <class T, class Tr, int W> bool validate(const Core<T, Tr, W> &core, st
   }
   if (located && core.leaves.table_size() != core.leaves.id_count())
     return fail(-1, "the handle table's length is not the ids'");
+  if (!core.leaves.generations().empty() && core.leaves.generations().size() != core.leaves.id_count())
+    return fail(-1, "the generations' length is not the ids'");
   return true;
 }
 
@@ -6107,17 +6166,25 @@ public:
   /// a.swap(b).
   friend void swap(BVH &a, BVH &b) noexcept { a.swap(b); }
 
-  /// A stored shape's name. insert() returns it; construct(elements) names
-  /// elements[i] `handle{std::uint32_t(i)}`. It stays valid until that shape
-  /// is erased, whatever else is inserted, erased, updated or rebuilt; then
-  /// its id may be given again by a later insert(), as Box2D's proxy ids
-  /// are. Using a handle that names no stored shape is a BVH_ASSERT failure
-  /// in a debug build and undefined behaviour under NDEBUG (contains()
-  /// tells).
+  /// A stored shape's name: an id and that id's generation, as Box2D's
+  /// shape ids carry a revision. insert() returns it; construct(elements)
+  /// names elements[i] constructed(i), which on a tree that never held a
+  /// shape before is `handle{std::uint32_t(i)}` (generation 0). It stays
+  /// valid until that shape is erased, whatever else is inserted, erased,
+  /// updated or rebuilt. Then it is stale: a later insert() may reuse its
+  /// id (the last freed first), but with a newer generation, so the old
+  /// handle never names the new shape. (Generations are 32-bit: an id
+  /// reused 2^32 times would come back to an old handle's.) contains() is
+  /// false for a stale handle, or for one that never named a shape of this
+  /// tree. get(), find(), erase() and update() with such a handle fail a
+  /// BVH_ASSERT (a debug build aborts); with the checks off (NDEBUG) they
+  /// do nothing and say so: get() throws std::out_of_range, find() returns
+  /// end(), erase() and update() return false.
   struct handle {
-    std::uint32_t id;
-    friend bool operator==(handle a, handle b) { return a.id == b.id; }
-    friend bool operator!=(handle a, handle b) { return a.id != b.id; }
+    std::uint32_t id;             ///< the id, reused once its shape is erased
+    std::uint32_t generation = 0; ///< the id's generation when it was given
+    friend bool operator==(handle a, handle b) { return a.id == b.id && a.generation == b.generation; }
+    friend bool operator!=(handle a, handle b) { return !(a == b); }
   };
 
   /// A bidirectional iterator over every stored shape, leaf by leaf from
@@ -6144,7 +6211,8 @@ public:
     /// The handle of the shape it points to (not end()).
     handle id() const {
       BVH_ASSERT(tree_ != nullptr && leaf_ >= 0, "id() of end() or a singular iterator");
-      return handle{tree_->core_.leaves.ids(tree_->core_.nodes.node(leaf_))[index_]};
+      const std::uint32_t id = tree_->core_.leaves.ids(tree_->core_.nodes.node(leaf_))[index_];
+      return handle{id, tree_->core_.leaves.generation(id)};
     }
 
     /// Next shape (end() after the last; not from end()).
@@ -6235,7 +6303,7 @@ public:
     std::size_t leaf_slack = 0; ///< leaf pool places holding no shape (room in slots, free slots, blocks not yet filled), with their ids' places
     std::size_t pool_index = 0; ///< the leaf pool's bookkeeping: slot sizes, free-slot lists, block tables
     std::size_t handles = 0;    ///< the handle table (id -> leaf and position), 0 until a handle is first looked up
-    std::size_t free_ids = 0;   ///< the ids given back, kept for later inserts, with their room
+    std::size_t free_ids = 0;   ///< the ids given back, with their room, and each id's generation once a shape is erased
     std::size_t scratch = 0;    ///< build memory kept for the next split or rebuild (the largest one's)
     /// Not held now: what construct() of size() shapes holds besides the
     /// finished tree while it runs, and gives back when it returns: a copy
@@ -6310,14 +6378,21 @@ public:
 
   /// Replaces the contents with `elements`, built top-down by the build
   /// rule (the course's: see detail::CourseRule); elements[i] gets the
-  /// handle id i. Basic guarantee: if it throws (a copy of a shape, or
-  /// memory), the tree is left empty and valid, its parameters kept, and
-  /// every old handle is invalid. An element outside the supported values
-  /// (docs/library.txt, SUPPORTED VALUES) throws std::invalid_argument
-  /// naming the first one, before anything changes.
+  /// handle constructed(i), of id i. Basic guarantee: if it throws (a copy
+  /// of a shape, or memory), the tree is left empty and valid, its
+  /// parameters kept, and every old handle is invalid. An element outside
+  /// the supported values (docs/library.txt, SUPPORTED VALUES) throws
+  /// std::invalid_argument naming the first one, before anything changes.
   void construct(const std::vector<T> &elements) {
     detail::require_supported(core_.traits, elements, "construct", "elements");
     detail::construct(core_, elements);
+  }
+  /// The handle the last construct(elements) gave elements[i] (i below
+  /// elements.size()): id i, and a generation above every handle's the tree
+  /// gave before (0 when it never held a shape). Stale, as any handle, once
+  /// that shape is erased. O(1), never throws.
+  handle constructed(std::size_t i) const noexcept {
+    return handle{std::uint32_t(i), core_.leaves.constructed_generation()};
   }
 
   /// Adds one shape (the insertion strategy: detail::insert_shape) and
@@ -6338,7 +6413,7 @@ public:
       throw;
     }
     core_.leaves.settle_ids();
-    return handle{id};
+    return handle{id, core_.leaves.generation(id)};
   }
 
   /// Discard-overlap (Poisson-disk) sampling on `threads` threads (0, the
@@ -6377,26 +6452,37 @@ public:
   /// Like every const member it may run on several threads at once: the
   /// first builds the table under a lock and the others wait. Never
   /// throws: without memory for the table, it walks the leaves instead.
-  bool contains(handle h) const noexcept { return core_.leaves.find(core_.nodes, core_.root, h.id, nullptr); }
-  /// The stored shape named by `h` (valid: see contains()).
+  bool contains(handle h) const noexcept { return locate(h, nullptr); }
+  /// The stored shape named by `h` (valid: see contains(); a stale handle
+  /// fails a BVH_ASSERT, or with the checks off throws std::out_of_range).
   const T &get(handle h) const {
-    BVH_ASSERT(contains(h), "get() with a handle that names no stored shape");
-    return *find(h);
+    Loc at;
+    const bool named = locate(h, &at);
+    BVH_ASSERT(named, "get() with a handle that names no stored shape");
+    if (!named) throw std::out_of_range("BVH::get: a handle that names no stored shape");
+    return core_.leaves.shapes(core_.nodes.node(at.leaf))[at.index];
   }
-  /// An iterator to the shape named by `h` (valid).
+  /// An iterator to the shape named by `h` (valid; a stale handle fails a
+  /// BVH_ASSERT, or with the checks off gives end()).
   iterator find(handle h) const {
-    BVH_ASSERT(contains(h), "find() with a handle that names no stored shape");
-    const auto at = core_.locate(h.id);
-    return iterator(this, at.leaf, at.index);
+    Loc at;
+    const bool named = locate(h, &at);
+    BVH_ASSERT(named, "find() with a handle that names no stored shape");
+    return named ? iterator(this, at.leaf, at.index) : end();
   }
 
-  /// Removes the shape named by `h` (valid); `h` becomes invalid, as do
-  /// iterators. Strong (a rebuild for balance after it: by the build rule,
-  /// as for insert(); erase(iterator) instead keeps the iteration order).
-  void erase(handle h) {
-    BVH_ASSERT(contains(h), "erase() with a handle that names no stored shape");
-    const auto at = core_.locate(h.id);
+  /// Removes the shape named by `h` (valid) and returns true; `h` becomes
+  /// stale, and iterators invalid. Strong (a rebuild for balance after it:
+  /// by the build rule, as for insert(); erase(iterator) instead keeps the
+  /// iteration order). A stale handle fails a BVH_ASSERT, or with the
+  /// checks off changes nothing and returns false.
+  bool erase(handle h) {
+    Loc at;
+    const bool named = locate(h, &at);
+    BVH_ASSERT(named, "erase() with a handle that names no stored shape");
+    if (!named) return false;
     detail::erase_shape(core_, at.leaf, at.index, detail::Cut::by_rule);
+    return true;
   }
   /// Removes the shape at `pos` and returns the iterator to the shape that
   /// followed it (end() after the last). Every other iterator is
@@ -6429,7 +6515,9 @@ public:
     return removed;
   }
 
-  /// The shape named by `h` (valid) becomes `moved`; its handle stays.
+  /// The shape named by `h` (valid) becomes `moved`, and it returns true;
+  /// its handle stays. (A stale handle fails a BVH_ASSERT, or with the
+  /// checks off changes nothing and returns false.)
   /// When moved's box lies inside its leaf's box, the shape is replaced in
   /// place and, with margin 0, the boxes above are shrunk to fit again:
   /// O(depth), and every iterator stays valid. Otherwise the shape is
@@ -6442,10 +6530,14 @@ public:
   /// that move cannot throw, else as strong as T's copy assignment). A
   /// `moved` outside the supported values throws std::invalid_argument,
   /// the tree unchanged.
-  void update(handle h, const T &moved) {
-    BVH_ASSERT(contains(h), "update() with a handle that names no stored shape");
+  bool update(handle h, const T &moved) {
+    Loc at;
+    const bool named = locate(h, &at);
+    BVH_ASSERT(named, "update() with a handle that names no stored shape");
+    if (!named) return false;
     detail::require_supported(core_.traits, moved, "update");
-    detail::update_shape(core_, h.id, moved);
+    detail::update_shape(core_, h.id, at, moved);
+    return true;
   }
 
   /// Leaves' boxes are their shapes' box grown by `m` on every side (m < 0
@@ -6613,7 +6705,7 @@ public:
   template <class Out> Out nearest(const Point &p, std::size_t k, Out out) const {
     detail::InlineVector<detail::Found<T>, 16> found;
     detail::best_first(core_, detail::PointMetric<Point>{p}, k, found);
-    for (const auto &f : found) *out++ = neighbor{f.shape, f.key, handle{f.id}};
+    for (const auto &f : found) *out++ = neighbor{f.shape, f.key, handle{f.id, core_.leaves.generation(f.id)}};
     return out;
   }
 
@@ -6664,6 +6756,13 @@ public:
   bool validate(std::string *why = nullptr) const { return detail::validate(core_, why); }
 
 private:
+  using Loc = typename detail::LeafStore<T>::Loc;
+  /// True when `h` names a stored shape (its id stored, its generation the
+  /// id's), whose place then goes to *at (when given). Never throws.
+  bool locate(handle h, Loc *at) const noexcept {
+    return core_.leaves.find(core_.nodes, core_.root, h.id, h.generation, at);
+  }
+
   /// The move: `other`'s state for ours, then `other` emptied.
   void take(BVH &other) noexcept {
     core_.swap(other.core_);

@@ -285,8 +285,9 @@ cli_output() { python_script cli_output cli_output_; }
 
 # BVH_ASSERT (tests/test_asserts.cpp): in a debug build each misuse of the
 # API aborts with a "BVH misuse" message; correct use near the edges fires
-# nothing; -DNDEBUG compiles the checks away; a user's own BVH_ASSERT (here
-# one that throws) replaces the default for every check.
+# nothing; -DNDEBUG compiles the checks away (and a stale handle then has
+# its defined outcome: nothing changes); a user's own BVH_ASSERT (here one
+# that throws) replaces the default for every check.
 asserts() {
   local c cases
   if ! cases=$("$BUILD/test_asserts" list); then
@@ -299,6 +300,7 @@ asserts() {
   done
   run_case bvh_assert_quiet_on_valid_use "$BUILD/test_asserts" valid
   run_case bvh_assert_off_under_ndebug "$BUILD/test_asserts_ndebug" valid
+  run_case bvh_assert_off_stale_handles_do_nothing "$BUILD/test_asserts_ndebug" stale
   run_case bvh_assert_user_handler "$BUILD/test_asserts_throwing" handler
 }
 

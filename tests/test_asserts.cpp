@@ -5,7 +5,9 @@
 //
 //   build/test_asserts CASE     CASE: one of the names in `cases` below, or
 //                               `valid` (correct use only: exits 0), or
-//                               `handler` (with -DBVH_TEST_THROWING_ASSERT)
+//                               `handler` (with -DBVH_TEST_THROWING_ASSERT), or
+//                               `stale` (with -DNDEBUG: a stale handle's
+//                               defined outcome in each call; exits 0)
 #ifdef BVH_TEST_THROWING_ASSERT
 #include <stdexcept>
 // A user's handler: misuse throws instead of aborting.
@@ -117,6 +119,48 @@ const Case cases[] = {
        t.erase(h);
        t.update(h, some_disks()[2]);
      }},
+    // A stale handle whose id a later insert() reused: it names no shape,
+    // although its id does.
+    {"get_stale_handle", [] {
+       BVH<Disk> t;
+       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       t.insert(some_disks()[1]);
+       t.erase(h);
+       t.insert(some_disks()[2]);
+       std::printf("%g\n", t.get(h).getRadius());
+     }},
+    {"find_stale_handle", [] {
+       BVH<Disk> t;
+       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       t.insert(some_disks()[1]);
+       t.erase(h);
+       t.insert(some_disks()[2]);
+       std::printf("%d\n", int(t.find(h) == t.end()));
+     }},
+    {"erase_stale_handle", [] {
+       BVH<Disk> t;
+       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       t.insert(some_disks()[1]);
+       t.erase(h);
+       t.insert(some_disks()[2]);
+       t.erase(h);
+     }},
+    {"update_stale_handle", [] {
+       BVH<Disk> t;
+       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       t.insert(some_disks()[1]);
+       t.erase(h);
+       t.insert(some_disks()[2]);
+       t.update(h, some_disks()[3]);
+     }},
+    {"get_handle_from_before_emptying", [] {
+       BVH<Disk> t;
+       t.construct(some_disks());
+       const BVH<Disk>::handle h = t.constructed(0);
+       t.clear();
+       t.construct(some_disks()); // id 0 again, of a newer generation
+       std::printf("%g\n", t.get(h).getRadius());
+     }},
     {"deref_overlap_end", [] {
        BVH<Disk> t;
        t.construct(some_disks());
@@ -149,6 +193,42 @@ int main(int argc, char **argv) {
     for (it = t.begin(); it != t.end();) it = t.erase(it), ++n;
     return n == 19 && t.empty() ? 0 : 1;
   }
+#ifdef NDEBUG
+  if (which == "stale") {
+    // With the checks off, a stale handle (its id reused by a later insert)
+    // or one never given changes nothing, and each call says so.
+    BVH<Disk> t;
+    const std::vector<Disk> d = some_disks();
+    const BVH<Disk>::handle old = t.insert(d[0]);
+    t.insert(d[1]);
+    t.erase(old);
+    const BVH<Disk>::handle now = t.insert(d[2]);
+    int wrong = 0;
+    const auto expect = [&](bool ok, const char *what) {
+      if (!ok) {
+        std::printf("stale: %s\n", what);
+        ++wrong;
+      }
+    };
+    expect(now.id == old.id && now != old, "the id is reused, with another generation");
+    for (const BVH<Disk>::handle h : {old, BVH<Disk>::handle{now.id, now.generation + 1}, BVH<Disk>::handle{99}}) {
+      expect(!t.contains(h), "contains() is false");
+      expect(!t.erase(h), "erase() returns false");
+      expect(!t.update(h, d[3]), "update() returns false");
+      expect(t.find(h) == t.end(), "find() returns end()");
+      bool threw = false;
+      try {
+        (void)t.get(h);
+      } catch (const std::out_of_range &) {
+        threw = true;
+      }
+      expect(threw, "get() throws std::out_of_range");
+      expect(t.size() == 2 && t.contains(now) && t.get(now) == d[2], "the shape of the reused id is untouched");
+      expect(t.validate(), "validate()");
+    }
+    return wrong == 0 ? 0 : 1;
+  }
+#endif
 #ifdef BVH_TEST_THROWING_ASSERT
   if (which == "handler") {
     int caught = 0;

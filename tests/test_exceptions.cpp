@@ -662,7 +662,7 @@ template <class T> void construct_case() {
                s.tree.construct(elements);
                fault::Pause bookkeeping;
                for (std::size_t i = 0; i < elements.size(); ++i)
-                 s.live.push_back(typename Tree<T>::handle{std::uint32_t(i)});
+                 s.live.push_back(s.tree.constructed(i));
              },
              [&](const State<T> &, const Subject<T> &s) {
                CHECK(s.tree.empty());

@@ -31,11 +31,16 @@ namespace {
 using Tree = BVH<Disk>;
 using Handle = Tree::handle;
 
-/// The id rule, as docs/library.txt states it, and what each id names.
+/// The id rule, as docs/library.txt states it, and what each id names;
+/// with the generations as bvh.h gives them: an erase raises its id's, and
+/// once the tree is emptied (or constructed) the ids start again above
+/// every generation given before.
 struct Model {
   std::uint32_t count = 0;          // ids given out so far (in use or free)
   std::vector<std::uint32_t> free;  // given back, the last one reused first
   std::map<std::uint32_t, Disk> shapes;
+  std::vector<std::uint32_t> generation; // by id
+  std::uint32_t fresh = 0;               // the generation of new ids
 
   std::uint32_t next() {
     if (!free.empty()) {
@@ -43,27 +48,37 @@ struct Model {
       free.pop_back();
       return id;
     }
+    generation.push_back(fresh);
     return count++;
   }
   void insert(const Disk &d) {
     const std::uint32_t id = next();
     shapes[id] = d;
   }
+  void forget() {
+    if (count != 0) fresh = std::max(fresh, *std::max_element(generation.begin(), generation.end())) + 1;
+    count = 0;
+    free.clear();
+    generation.clear();
+    shapes.clear();
+  }
   void erase(std::uint32_t id) {
     shapes.erase(id);
     if (shapes.empty()) {
-      count = 0;
-      free.clear();
+      forget();
     } else {
+      ++generation[id];
       free.push_back(id);
     }
   }
   void construct(const std::vector<Disk> &v) {
-    *this = Model();
+    forget();
     for (const Disk &d : v) insert(d);
   }
   /// The id the next insert() will get.
   std::uint32_t peek() const { return free.empty() ? count : free.back(); }
+  /// The handle of id (in use: its shape's; free: none's).
+  Handle handle(std::uint32_t id) const { return Handle{id, generation.at(id)}; }
 };
 
 /// Without looking a handle up: size, validate, iteration's ids.
@@ -73,7 +88,7 @@ bool agrees_without_handles(const Tree &tree, const Model &m, std::string *why) 
   std::size_t seen = 0;
   for (auto it = tree.begin(); it != tree.end(); ++it, ++seen) {
     const auto s = m.shapes.find(it.id().id);
-    if (s == m.shapes.end() || !(s->second == *it))
+    if (s == m.shapes.end() || !(s->second == *it) || it.id() != m.handle(it.id().id))
       return *why = "iterator's id " + std::to_string(it.id().id) + " names another shape", false;
   }
   if (seen != m.shapes.size()) return *why = "iteration saw " + std::to_string(seen), false;
@@ -85,14 +100,17 @@ bool agrees_without_handles(const Tree &tree, const Model &m, std::string *why) 
 bool agrees(const Tree &tree, const Model &m, std::string *why) {
   if (!agrees_without_handles(tree, m, why)) return false;
   for (const auto &[id, d] : m.shapes) {
-    const Handle h{id};
+    const Handle h = m.handle(id);
     if (!tree.contains(h)) return *why = "lost handle " + std::to_string(id), false;
     if (!(tree.get(h) == d)) return *why = "get(" + std::to_string(id) + ") is another shape", false;
     if (tree.find(h).id() != h) return *why = "find(" + std::to_string(id) + ")", false;
+    if (tree.contains(Handle{id, h.generation - 1}) || tree.contains(Handle{id, h.generation + 1}))
+      return *why = "id " + std::to_string(id) + " of another generation names a shape", false;
   }
   for (std::uint32_t id : m.free)
-    if (tree.contains(Handle{id})) return *why = "free id " + std::to_string(id) + " names a shape", false;
-  if (tree.contains(Handle{m.count})) return *why = "id past the count names a shape", false;
+    if (tree.contains(m.handle(id)) || tree.contains(Handle{id, m.handle(id).generation - 1}))
+      return *why = "free id " + std::to_string(id) + " names a shape", false;
+  if (tree.contains(Handle{m.count, m.fresh})) return *why = "id past the count names a shape", false;
   if (!m.shapes.empty() && tree.memory().handles == 0) return *why = "handles used but no table", false;
   return tree.validate(why);
 }
@@ -167,7 +185,7 @@ TEST(no_table_until_a_handle_is_used) {
     CHECK_EQ(tree.memory().handles, std::size_t(0));
     CHECK_EQ(copy.memory().handles, std::size_t(0));
     // The first handle lookup builds it; every id ever given names its shape.
-    const Handle first{m.shapes.begin()->first};
+    const Handle first = m.handle(m.shapes.begin()->first);
     CHECK(tree.get(first) == m.shapes.begin()->second);
     CHECK(tree.memory().handles >= tree.size() * 8);
     CHECK(agrees(tree, m, &why));
@@ -198,7 +216,7 @@ void random_changes(unsigned seed, bool handles_late, int steps) {
   auto pick = [&]() {
     auto it = m.shapes.begin();
     std::advance(it, long(rng() % m.shapes.size()));
-    return Handle{it->first};
+    return m.handle(it->first);
   };
   bool used = false; // a handle was looked up since the tree last emptied
   for (int step = 0; step < steps; ++step) {
@@ -211,6 +229,7 @@ void random_changes(unsigned seed, bool handles_late, int steps) {
       const Handle h = tree.insert(d);
       CHECK_EQ(h.id, m.peek());
       m.insert(d);
+      CHECK(h == m.handle(h.id));
     } else if (op < 16) {
       auto it = tree.begin();
       std::advance(it, long(rng() % tree.size()));
@@ -367,9 +386,10 @@ TEST(first_lookups_on_several_threads_at_once) {
         std::uint32_t id = std::uint32_t(t) * 997u % m.count;
         for (std::uint32_t k = 0; k < m.count; ++k, id = (id + 1) % m.count) {
           const auto s = m.shapes.find(id);
-          const bool in = tree.contains(Handle{id});
-          if (in != (s != m.shapes.end()) || (in && !(tree.get(Handle{id}) == s->second))) ++wrong;
-          if (in && t % 2 && tree.find(Handle{id}).id().id != id) ++wrong;
+          const Handle h = m.handle(id);
+          const bool in = tree.contains(h);
+          if (in != (s != m.shapes.end()) || (in && !(tree.get(h) == s->second))) ++wrong;
+          if (in && t % 2 && tree.find(h).id() != h) ++wrong;
         }
       });
     for (std::thread &th : pool) th.join();

@@ -28,12 +28,16 @@ using Handle = Tree::handle;
 
 std::string seed_note(unsigned seed, int step) { return "BVH_SEED=" + std::to_string(seed) + " step " + std::to_string(step); }
 
+/// The model of a tree: each stored shape's handle and shape, by id.
+template <class H> using Model = std::map<std::uint32_t, std::pair<H, Disk>>;
+
 /// The tree's contents agree with the model, shape by shape and handle by
 /// handle: get(), contains(), find() and iteration with iterator::id().
-template <class Tr> bool agrees(const Tr &tree, const std::map<std::uint32_t, Disk> &model, std::string *why) {
+template <class Tr> bool agrees(const Tr &tree, const Model<typename Tr::handle> &model, std::string *why) {
   if (tree.size() != model.size()) return *why = "size " + std::to_string(tree.size()), false;
-  for (const auto &[id, d] : model) {
-    const typename Tr::handle h{id};
+  for (const auto &[id, named] : model) {
+    const auto &[h, d] = named;
+    if (h.id != id) return *why = "the model's handle " + std::to_string(h.id) + " under id " + std::to_string(id), false;
     if (!tree.contains(h)) return *why = "lost handle " + std::to_string(id), false;
     if (!(tree.get(h) == d)) return *why = "get(" + std::to_string(id) + ") is another shape", false;
     if (!(*tree.find(h) == d) || tree.find(h).id() != h) return *why = "find(" + std::to_string(id) + ")", false;
@@ -41,7 +45,8 @@ template <class Tr> bool agrees(const Tr &tree, const std::map<std::uint32_t, Di
   std::size_t seen = 0;
   for (auto it = tree.begin(); it != tree.end(); ++it, ++seen) {
     const auto m = model.find(it.id().id);
-    if (m == model.end() || !(m->second == *it)) return *why = "iterator's id names another shape", false;
+    if (m == model.end() || !(m->second.second == *it) || m->second.first != it.id())
+      return *why = "iterator's id names another shape", false;
   }
   if (seen != model.size()) return *why = "iteration saw " + std::to_string(seen), false;
   return tree.validate(why);
@@ -68,16 +73,17 @@ void random_sequence(unsigned seed, double margin, Tree::BuildRule rule, int dep
   Tree tree(split, depth_limit);
   tree.set_build_rule(rule);
   tree.set_margin(margin);
-  std::map<std::uint32_t, Disk> model;
+  Model<Handle> model;
   std::vector<Disk> start = make.scene<Disk>(200, 4);
   tree.construct(start);
-  for (std::size_t i = 0; i < start.size(); ++i) model.emplace(std::uint32_t(i), start[i]);
+  for (std::size_t i = 0; i < start.size(); ++i)
+    model.emplace(std::uint32_t(i), std::make_pair(tree.constructed(i), start[i]));
   std::string why;
   CHECK(agrees(tree, model, &why));
   auto pick = [&]() {
     auto it = model.begin();
     std::advance(it, long(rng() % model.size()));
-    return Handle{it->first};
+    return it->second.first;
   };
   for (int step = 0; step < steps; ++step) {
     note(seed_note(seed, step) + " margin " + std::to_string(margin) + " width " + std::to_string(W));
@@ -87,7 +93,7 @@ void random_sequence(unsigned seed, double margin, Tree::BuildRule rule, int dep
       make.make(d, 4);
       const Handle h = tree.insert(d);
       CHECK(model.count(h.id) == 0);
-      model[h.id] = d;
+      model[h.id] = {h, d};
     } else if (op == 3) {
       const Handle h = pick();
       tree.erase(h);
@@ -100,7 +106,7 @@ void random_sequence(unsigned seed, double margin, Tree::BuildRule rule, int dep
       tree.erase(it);
     } else {
       const Handle h = pick();
-      const Disk &d = model[h.id];
+      const Disk &d = model[h.id].second;
       const double r = d.getRadius();
       Disk to = d;
       switch (op % 6) {
@@ -112,11 +118,11 @@ void random_sequence(unsigned seed, double margin, Tree::BuildRule rule, int dep
       default: to = moved(d, 0, 0); break; // no move at all
       }
       tree.update(h, to);
-      model[h.id] = to;
+      model[h.id].second = to;
       if (op % 6 == 3) { // and back
         const Disk back = moved(to, -5000, 7000);
         tree.update(h, back);
-        model[h.id] = back;
+        model[h.id].second = back;
       }
     }
     if (!agrees(tree, model, &why)) {
@@ -129,7 +135,7 @@ void random_sequence(unsigned seed, double margin, Tree::BuildRule rule, int dep
     Disk probe;
     make.make(probe, 30);
     std::size_t expected = 0, found = 0;
-    for (const auto &[id, d] : model) expected += intersect(d, probe) ? 1 : 0;
+    for (const auto &[id, named] : model) expected += intersect(named.second, probe) ? 1 : 0;
     tree.query(probe, [&](const Disk &) { ++found; });
     CHECK_EQ(found, expected);
     CHECK_EQ(tree.collision(probe), expected != 0);
@@ -150,6 +156,149 @@ TEST(handles_survive_at_width_8_with_wide_leaves) {
   random_sequence<8>(base_seed() + 3400, 0, Tree::BuildRule::course, 0, scaled(2000), 32);
   random_sequence<8>(base_seed() + 3401, 0.75, Tree::BuildRule::course, 0, scaled(1500), 16);
   random_sequence<4>(base_seed() + 3402, 0, Tree::BuildRule::sah, 0, scaled(1500), 12);
+}
+
+/// Stale handles against a brute-force model: every handle the tree ever
+/// gave (by insert(), construct(), iterator::id(), nearest()) is kept, live
+/// or not, and after each random step (insert, erase by handle and by
+/// iterator, update, emptying the tree, construct, clear, a copy,
+/// insert_disjoint) contains()
+/// is true exactly for the live ones, which get() and find() answer
+/// rightly. A new handle equals no handle given before, although its id is
+/// the last one freed (the model's free list says which).
+template <int W> void stale_handles_against_a_model(unsigned seed, int steps) {
+  using Tree = BVH<Disk, bvh::shape_traits<Disk>, W>;
+  using Handle = typename Tree::handle;
+  using Key = std::pair<std::uint32_t, std::uint32_t>; // (id, generation)
+  const auto key = [](Handle h) { return Key{h.id, h.generation}; };
+  note(seed_note(seed, -1) + " width " + std::to_string(W));
+  Maker make(seed);
+  std::mt19937 &rng = make.rng;
+  Tree tree(int(rng() % 6) + 1, 0);
+  std::map<Key, Disk> live;        // the live handles and their shapes
+  std::vector<Handle> given;       // every handle given, live or stale
+  std::vector<std::uint32_t> free; // the model's free ids, reused last first
+  std::uint32_t next_id = 0;       // ids below it are in use or free
+  std::size_t reused = 0;          // checks of a stale handle whose id names a live shape
+  const auto forget_all = [&] {    // the tree is empty: ids start again at 0
+    live.clear();
+    free.clear();
+    next_id = 0;
+  };
+  const auto took = [&](Handle h, const Disk &d) {
+    const std::uint32_t want = free.empty() ? next_id++ : free.back();
+    if (!free.empty()) free.pop_back();
+    CHECK_EQ(h.id, want);
+    for (Handle old : given) CHECK(old != h);
+    live[key(h)] = d;
+    given.push_back(h);
+  };
+  const auto random_live = [&] {
+    auto it = live.begin();
+    std::advance(it, long(rng() % live.size()));
+    return Handle{it->first.first, it->first.second};
+  };
+  const auto erased = [&](Handle h) {
+    live.erase(key(h));
+    if (live.empty()) forget_all();
+    else free.push_back(h.id);
+  };
+  for (int step = 0; step < steps; ++step) {
+    note(seed_note(seed, step) + " width " + std::to_string(W));
+    const unsigned op = unsigned(rng() % 100);
+    Disk d;
+    make.make(d, 8);
+    if (op < 35 || live.empty()) {
+      took(tree.insert(d), d);
+    } else if (op < 55) {
+      const Handle h = random_live();
+      tree.erase(h);
+      erased(h);
+    } else if (op < 62) {
+      auto it = tree.begin();
+      std::advance(it, long(rng() % tree.size()));
+      const Handle h = it.id();
+      CHECK(live.count(key(h)) == 1);
+      tree.erase(it);
+      erased(h);
+    } else if (op < 85) {
+      const Handle h = random_live();
+      if (rng() % 2) d = Disk(Point(live[key(h)].getCenter().x + 1, live[key(h)].getCenter().y), 2, Color(0, 0, 0));
+      tree.update(h, d);
+      live[key(h)] = d;
+    } else if (op < 88) { // erase everything, one handle at a time
+      while (!live.empty()) {
+        const Handle h = random_live();
+        tree.erase(h);
+        erased(h);
+      }
+    } else if (op < 91) {
+      std::vector<Disk> v = make.scene<Disk>(int(rng() % 40), 6);
+      tree.construct(v);
+      forget_all();
+      next_id = std::uint32_t(v.size());
+      for (std::size_t i = 0; i < v.size(); ++i) {
+        const Handle h = tree.constructed(i);
+        CHECK_EQ(h.id, std::uint32_t(i));
+        for (Handle old : given) CHECK(old != h);
+        live[key(h)] = v[i];
+        given.push_back(h);
+      }
+    } else if (op < 93) {
+      tree.clear();
+      forget_all();
+    } else if (op < 95) {
+      tree = Tree(tree); // handles name the same shapes in a copy
+    } else if (op < 97) { // the loop's ids, hence reused ones too, each with a new handle
+      const std::vector<Disk> c = make.scene<Disk>(int(rng() % 8), 8);
+      for (std::size_t k : tree.insert_disjoint(c, 1 + unsigned(rng() % 2))) {
+        Handle h{};
+        int found = 0;
+        for (auto it = tree.begin(); it != tree.end(); ++it)
+          if (*it == c[k] && live.count(key(it.id())) == 0) h = it.id(), ++found;
+        CHECK_EQ(found, 1);
+        took(h, c[k]);
+      }
+    } else if (!live.empty()) { // nearest() gives handles too
+      std::vector<typename Tree::neighbor> near;
+      tree.nearest(d.getCenter(), 3, std::back_inserter(near));
+      for (const auto &n : near) CHECK(live.count(key(n.id)) == 1 && *n.shape == live[key(n.id)]);
+    }
+    if (given.size() > 600) { // the oldest stale handles go (the least telling)
+      std::vector<Handle> kept;
+      for (std::size_t i = 0; i < given.size(); ++i)
+        if (i >= 200 || live.count(key(given[i]))) kept.push_back(given[i]);
+      given.swap(kept);
+    }
+    std::size_t stored = 0;
+    std::vector<char> live_ids(next_id, 0);
+    for (const auto &kv : live) live_ids.at(kv.first.first) = 1;
+    for (Handle h : given) {
+      const auto m = live.find(key(h));
+      const bool in = m != live.end();
+      if (!in && h.id < live_ids.size() && live_ids[h.id]) ++reused;
+      CHECK_EQ(tree.contains(h), in);
+      if (in) {
+        ++stored;
+        CHECK(tree.get(h) == m->second);
+        CHECK(tree.find(h).id() == h);
+        CHECK(!tree.contains(Handle{h.id, h.generation + 1})); // (a generation not given yet)
+      }
+    }
+    CHECK_EQ(stored, live.size()); // every live handle is among those kept
+    CHECK_EQ(tree.size(), live.size());
+    if (check::failures_in_case() != 0) return;
+  }
+  std::string why;
+  CHECK(tree.validate(&why));
+  CHECK(reused > std::size_t(steps)); // the case in question was met often
+}
+
+TEST(stale_handles_never_name_a_later_shape) {
+  for (unsigned k = 0; k < 4; ++k) {
+    stale_handles_against_a_model<3>(base_seed() + 3900 + k, scaled(1000));
+    stale_handles_against_a_model<8>(base_seed() + 3950 + k, scaled(1000));
+  }
 }
 
 TEST(update_inside_the_leaf_keeps_iterators) {
@@ -251,7 +400,8 @@ TEST(update_out_of_its_leaf_is_erase_then_insert) {
     const Disk *where = &tree.get(Handle{id});
     tree.update(Handle{id}, moved);
     note("step " + std::to_string(step) + " id " + std::to_string(id));
-    CHECK(again == Handle{id});
+    CHECK(again.id == id && again != Handle{id}); // the id, of a newer generation
+    CHECK(!by_hand.contains(Handle{id}));
     CHECK(tree.get(Handle{id}) == moved);
     if (&tree.get(Handle{id}) == where) {
       ++in_place;
@@ -269,10 +419,13 @@ TEST(update_out_of_its_leaf_is_erase_then_insert) {
 TEST(handles_survive_copies_moves_and_rebuilds) {
   Maker make(base_seed() + 3500);
   Tree tree(4, 0);
-  std::map<std::uint32_t, Disk> model;
-  for (const Disk &d : make.scene<Disk>(2000, 3)) model[tree.insert(d).id] = d;
+  Model<Handle> model;
+  for (const Disk &d : make.scene<Disk>(2000, 3)) {
+    const Handle h = tree.insert(d);
+    model[h.id] = {h, d};
+  }
   for (std::uint32_t id = 0; id < 2000; id += 3) { // holes in the id table
-    tree.erase(Handle{id});
+    tree.erase(model.at(id).first);
     model.erase(id);
   }
   std::string why;
