@@ -3348,11 +3348,17 @@ template <class T, class Tr, int W> int rebuild(Core<T, Tr, W> &core, int at, Cu
   return fresh;
 }
 
-/// The threads a build may use: `wanted`, or with 0 the hardware's.
+/// The most threads any call starts. A larger request gets this many: the
+/// batch sizes scale with the thread count (64 * threads and more), which
+/// past this would overflow or reserve more threads than a system has.
+constexpr unsigned kMaxThreads = 1024;
+
+/// The threads a build may use: `wanted`, or with 0 the hardware's, at
+/// most kMaxThreads.
 inline unsigned threads_for(unsigned wanted) {
-  if (wanted != 0) return wanted;
+  if (wanted != 0) return std::min(wanted, kMaxThreads);
   const unsigned hw = std::thread::hardware_concurrency();
-  return hw == 0 ? 1 : hw;
+  return hw == 0 ? 1 : std::min(hw, kMaxThreads);
 }
 
 /// construct()'s course build. The rule's tree shape depends on counts
@@ -3538,7 +3544,7 @@ inline bool lopsided(std::size_t heaviest, std::size_t count) { return double(he
 /// Subtrees smaller than this are never rebuilt for balance: their
 /// imbalance costs less than the rebuild.
 template <class T, class Tr, int W> std::size_t min_rebuild(const Core<T, Tr, W> &core) {
-  return std::max<std::size_t>(16, 3 * std::size_t(core.split_threshold + 1));
+  return std::max<std::size_t>(16, 3 * (std::size_t(core.split_threshold) + 1));
 }
 
 /// The insertion strategy, part 2, and erase's balance: scapegoat-style
