@@ -6218,8 +6218,8 @@ public:
     detail::update_shape(core_, h.id, moved);
   }
 
-  /// Leaves' boxes are their shapes' box grown by `m` on every side (m < 0
-  /// or NaN is taken as 0; the default is 0, the course's tight boxes):
+  /// Leaves' boxes are their shapes' box grown by `m` on every side (m < 0,
+  /// NaN or infinite is taken as 0; the default is 0, the course's tight boxes):
   /// Box2D's "fat" boxes, which let update() absorb moves smaller than m
   /// without touching the tree, at the cost of looser boxes for queries
   /// (and larger areas in statistics()). Every box is recomputed: O(n).
