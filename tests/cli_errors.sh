@@ -302,13 +302,13 @@ else
   echo "skip cli_fifo_input_read_once: mkfifo failed"
 fi
 
-# A signal while the picture is written (a scene of 100000 disks, its
+# A signal while the picture is written (a scene of 50000 disks, its
 # picture some megabytes): the temporary goes, and the status is the
 # signal's. The run is stopped once the temporary has content, the
 # signal sent and the run continued, so the signal meets the writing.
 # (set -m: a background job of a script otherwise ignores SIGINT, and a
 # signal ignored at the start stays ignored.)
-awk 'BEGIN { srand(7); for (i = 0; i < 100000; i++)
+awk 'BEGIN { srand(7); for (i = 0; i < 50000; i++)
   printf "pt= <%.1f %.1f> radius= 0.5 color= {1 2 3}\n", 1 + rand() * 998, 1 + rand() * 998 }' >"$dir/big.disks"
 signal_removes_partial() { # NAME SIGNAL STATUS
   local name=$1$tag sig=$2 status=$3 try i rc pid seen=no
