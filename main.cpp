@@ -176,12 +176,16 @@ extern "C" void remove_partial_and_reraise(int sig) {
 }
 
 /// Flushes stdout; false with `error` set when any write to it since the
-/// last call to it failed (errno is cleared here, so that the reason given
-/// is the failed write's).
+/// last call failed. The reason is errno's: the caller clears errno before
+/// a part's writes and this clears it after, so that it is the failed
+/// write's (without one, the message has no reason).
 [[maybe_unused]] bool stdout_written(std::string &error) {
   std::cout.flush();
   const bool failed = std::fflush(stdout) != 0 || std::ferror(stdout) || !std::cout;
-  if (failed) error = std::string("error writing standard output") + (errno ? ": " : "") + (errno ? std::strerror(errno) : "");
+  if (failed) {
+    error = "error writing standard output";
+    if (errno != 0) error += std::string(": ") + std::strerror(errno);
+  }
   errno = 0;
   return !failed;
 }
