@@ -291,9 +291,7 @@ if mkfifo "$dir/fifo.disks" 2>/dev/null; then
     kill $writer 2>/dev/null
     wait $writer 2>/dev/null
     if [ $rc -ne 0 ] || ! cmp -s "$dir/stdout" "$dir/expected" || ! grep -q "</svg>" "$o"; then
-      failed="run $run: exit $rc $(head -c 200 "$dir/stdout")"
-      # (a reader still waiting for the writer: open the FIFO once more)
-      : <>"$dir/fifo.disks"
+      failed="run $run: exit $rc (124: it hung) $(head -c 200 "$dir/stdout")"
       break
     fi
   done
@@ -336,7 +334,7 @@ signal_removes_partial() { # NAME SIGNAL STATUS
   if [ $seen != yes ]; then
     echo "FAIL $name the temporary was never seen: exit $rc $(head -c 200 "$dir/stderr")"
   elif [ $rc -ne "$status" ] || [ -e "$o.partial" ] || [ -e "$o" ]; then
-    echo "FAIL $name exit $rc (expected $status), $(ls "$dir" | grep -c '^out\.html') output files left: $(head -c 200 "$dir/stderr")"
+    echo "FAIL $name exit $rc (expected $status); left behind: $(cd "$dir" && echo out.html*) $(head -c 200 "$dir/stderr")"
   else
     echo "ok $name"
   fi
