@@ -3578,11 +3578,17 @@ template <class T, class Tr, int W> int rebuild(Core<T, Tr, W> &core, int at, Cu
   return fresh;
 }
 
-/// The threads a build may use: `wanted`, or with 0 the hardware's.
+/// The most threads any call starts. A larger request gets this many: the
+/// batch sizes scale with the thread count (64 * threads and more), which
+/// past this would overflow or reserve more threads than a system has.
+constexpr unsigned kMaxThreads = 1024;
+
+/// The threads a build may use: `wanted`, or with 0 the hardware's, at
+/// most kMaxThreads.
 inline unsigned threads_for(unsigned wanted) {
-  if (wanted != 0) return wanted;
+  if (wanted != 0) return std::min(wanted, kMaxThreads);
   const unsigned hw = std::thread::hardware_concurrency();
-  return hw == 0 ? 1 : hw;
+  return hw == 0 ? 1 : std::min(hw, kMaxThreads);
 }
 
 /// construct()'s course build. The rule's tree shape depends on counts
@@ -3768,7 +3774,7 @@ inline bool lopsided(std::size_t heaviest, std::size_t count) { return double(he
 /// Subtrees smaller than this are never rebuilt for balance: their
 /// imbalance costs less than the rebuild.
 template <class T, class Tr, int W> std::size_t min_rebuild(const Core<T, Tr, W> &core) {
-  return std::max<std::size_t>(16, 3 * std::size_t(core.split_threshold + 1));
+  return std::max<std::size_t>(16, 3 * (std::size_t(core.split_threshold) + 1));
 }
 
 /// The insertion strategy, part 2, and erase's balance: scapegoat-style
@@ -6540,8 +6546,8 @@ public:
     return true;
   }
 
-  /// Leaves' boxes are their shapes' box grown by `m` on every side (m < 0
-  /// or NaN is taken as 0; the default is 0, the course's tight boxes):
+  /// Leaves' boxes are their shapes' box grown by `m` on every side (m < 0,
+  /// NaN or infinite is taken as 0; the default is 0, the course's tight boxes):
   /// Box2D's "fat" boxes, which let update() absorb moves smaller than m
   /// without touching the tree, at the cost of looser boxes for queries
   /// (and larger areas in statistics()). Every box is recomputed: O(n).

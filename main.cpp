@@ -11,8 +11,12 @@
 //   ./bvh.out --generate disks 1000 --seed 7 --overlap -o overlap_1000.disks
 //
 // Exit status: 0 on success, 1 when the input file is wrong (FILE:LINE:
-// message on stderr), 2 for a wrong command line. No output file is left
-// behind on any error.
+// message on stderr) or stdout cannot be written, 2 for a wrong command
+// line. No output file is left behind on any error, nor when SIGINT,
+// SIGTERM, SIGHUP or SIGQUIT ends the run.
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -20,6 +24,7 @@
 #include <cctype>
 #include <cerrno>
 #include <charconv>
+#include <climits>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -30,6 +35,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <mutex>
 #include <new>
 #include <string>
@@ -114,6 +120,75 @@ struct UsageError {
 };
 
 using namespace bvh_scene;
+
+// ---------------------------------------------------------------------------
+// The temporary file and the signals that end a run. Every file bvh.out
+// writes (the picture, a generated scene, check_files' probe) is written
+// under one temporary name, OUTPUT.partial (bvh::partial_path), and renamed
+// when complete. A signal that ends the run removes it: the handler
+// unlinks the name computed before any file was made (unlink and raise are
+// async-signal-safe), then the signal, back at its default action, ends
+// the process as it would have (the shell's 128 + N).
+
+std::string g_partial_name;               // the temporary's name (set once, before any file is made)
+const char *volatile g_partial = nullptr; // g_partial_name's text while the handler may remove it
+
+extern "C" void remove_partial_and_reraise(int sig) {
+  const int saved = errno;
+  if (const char *name = g_partial) unlink(name);
+  signal(sig, SIG_DFL);
+  raise(sig); // delivered once the handler returns (sig is blocked in it)
+  errno = saved;
+}
+
+/// Installs the handler for the signals that end a run, except those the
+/// caller ignores (nohup's SIGHUP, a background job's SIGINT stay ignored).
+[[maybe_unused]] void remove_partial_on_signals(const std::string &partial) {
+  g_partial_name = partial;
+  g_partial = g_partial_name.c_str();
+  for (int sig : {SIGHUP, SIGINT, SIGQUIT, SIGTERM}) {
+    struct sigaction old {};
+    if (sigaction(sig, nullptr, &old) != 0 || old.sa_handler == SIG_IGN) continue;
+    struct sigaction action {};
+    action.sa_handler = remove_partial_and_reraise;
+    sigemptyset(&action.sa_mask);
+    sigaction(sig, &action, nullptr);
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Standard output. A write that fails (a full disk, a closed stdout) is an
+// error: one line on stderr and exit status 1, the picture not written.
+
+/// Before anything is opened: a standard descriptor the caller closed
+/// (`>&-`) is opened on /dev/null, read-only, so that no file opened later
+/// takes its number (a picture would then receive the statistics), and a
+/// write to a closed stdout fails, as it should, with EBADF.
+[[maybe_unused]] void hold_closed_standard_descriptors() {
+  for (int fd = 0; fd <= 2; ++fd)
+    if (fcntl(fd, F_GETFD) == -1 && errno == EBADF) {
+      const int held = open("/dev/null", O_RDONLY);
+      if (held >= 0 && held != fd) {
+        dup2(held, fd);
+        close(held);
+      }
+    }
+}
+
+/// Flushes stdout; false with `error` set when any write to it since the
+/// last call failed. The reason is errno's: the caller clears errno before
+/// a part's writes and this clears it after, so that it is the failed
+/// write's (without one, the message has no reason).
+[[maybe_unused]] bool stdout_written(std::string &error) {
+  std::cout.flush();
+  const bool failed = std::fflush(stdout) != 0 || std::ferror(stdout) || !std::cout;
+  if (failed) {
+    error = "error writing standard output";
+    if (errno != 0) error += std::string(": ") + std::strerror(errno);
+  }
+  errno = 0;
+  return !failed;
+}
 
 // ---------------------------------------------------------------------------
 // Progress on a terminal: one line on stderr, rewritten in place, from a
@@ -264,7 +339,7 @@ int generate(const std::string &kind, long count, std::uint64_t seed, double lo,
     return 1;
   }
   progress.stage("writing " + path);
-  const std::string temp = path + ".partial";
+  const std::string temp = bvh::partial_path(path);
   {
     std::ofstream out(temp, std::ios::binary | std::ios::trunc);
     if (!out) {
@@ -310,14 +385,16 @@ struct Options {
   double size_lo = -1, size_hi = -1;
 };
 
-template <class T, int W> int run(const Options &o) {
+/// The course's workflow on the scene `input`, o.input opened (once: a
+/// FIFO's writer is met by one open only).
+template <class T, int W> int run(const Options &o, std::FILE *input) {
   std::vector<T> shapes;
   std::string error;
   Progress progress;
-  std::error_code ec;
-  const std::uintmax_t bytes = std::filesystem::file_size(o.input, ec);
-  progress.stage("reading " + o.input, ec ? 0 : std::uint64_t(bytes), "MB");
-  if (!load_scene(o.input, shapes, error, kReadChunk, [&](std::uint64_t read) { progress.advance(read); })) {
+  struct stat st {};
+  const bool sized = fstat(fileno(input), &st) == 0 && S_ISREG(st.st_mode);
+  progress.stage("reading " + o.input, sized ? std::uint64_t(st.st_size) : 0, "MB");
+  if (!load_scene(input, o.input, shapes, error, kReadChunk, [&](std::uint64_t read) { progress.advance(read); })) {
     progress.pause();
     std::cerr << "bvh.out: " << error << "\n";
     return 1;
@@ -353,12 +430,24 @@ template <class T, int W> int run(const Options &o) {
     }
   }
   progress.pause();
+  // stdout is checked after each part, so that a failed write stops the run
+  // before the next (a --print_tree of millions of lines stops at the failed
+  // write: the stream then ignores the rest).
+  errno = 0;
   if (o.depth_limit > 0) tree.statistics(o.print_tree);
+  if (!stdout_written(error)) {
+    std::cerr << "bvh.out: " << error << "\n";
+    return 1;
+  }
   if (o.pairs) {
     progress.stage("counting overlapping pairs");
     const std::size_t pairs = tree.count_overlapping_pairs();
     progress.pause();
-    std::cout << "overlapping pairs: " << pairs << std::endl;
+    std::cout << "overlapping pairs: " << pairs << "\n";
+    if (!stdout_written(error)) {
+      std::cerr << "bvh.out: " << error << "\n";
+      return 1;
+    }
   }
   if (o.no_output) return 0;
   progress.stage("writing " + o.output);
@@ -375,15 +464,15 @@ template <class T, int W> int run(const Options &o) {
 /// sanitizer build of bvh.out and the CMake package test build it so, their
 /// cases being at width 3. The unit suites test every width, under the
 /// sanitizers too.)
-template <class T> int run_at(const Options &o) {
+template <class T> int run_at(const Options &o, std::FILE *input) {
 #ifdef BVH_CLI_COURSE_WIDTH_ONLY
-  return run<T, 3>(o);
+  return run<T, 3>(o, input);
 #else
   switch (o.width) {
-  case 2: return run<T, 2>(o);
-  case 4: return run<T, 4>(o);
-  case 8: return run<T, 8>(o);
-  default: return run<T, 3>(o);
+  case 2: return run<T, 2>(o, input);
+  case 4: return run<T, 4>(o, input);
+  case 8: return run<T, 8>(o, input);
+  default: return run<T, 3>(o, input);
   }
 #endif
 }
@@ -422,16 +511,22 @@ double parse_real(const std::string &flag, const std::string &text) {
   return value;
 }
 
+/// Every option parse_options knows (-i and -o are --input and --output;
+/// --help, which bvh_main handles first, is kHelpOption): option_name and
+/// the "did you mean" of an unknown one both read this table, so that no
+/// option can be missing from either.
+const char *const kOptions[] = {"--input", "--output", "--split_threshold", "--depth_limit", "--incremental",
+                                "--discard_overlap", "--visualize", "--print_tree", "--generate", "--seed",
+                                "--size", "--overlap", "--pairs", "--build", "--no_output", "--threads",
+                                "--width"};
+const char *const kHelpOption = "--help";
+
 /// The option's one name (-i is --input, -o is --output), or "" for a word
 /// that is not an option.
 std::string option_name(const std::string &arg) {
-  static const char *const names[] = {"--input", "--output", "--split_threshold", "--depth_limit",
-                                      "--incremental", "--discard_overlap", "--visualize", "--print_tree",
-                                      "--generate", "--seed", "--size", "--overlap", "--pairs", "--build",
-                                      "--no_output", "--threads", "--width"};
   if (arg == "-i") return "--input";
   if (arg == "-o") return "--output";
-  for (const char *name : names)
+  for (const char *name : kOptions)
     if (arg == name) return arg;
   return "";
 }
@@ -457,18 +552,16 @@ std::size_t edit_distance(const std::string &a, const std::string &b) {
 /// most 2 edits, '-' for '_' free: --depth-limit, -depth_limit, --visualise),
 /// or the -i a scene name lacks.
 std::string unknown_argument(const std::string &arg) {
-  static const char *const names[] = {"--input", "--output", "--split_threshold", "--depth_limit",
-                                      "--incremental", "--discard_overlap", "--visualize", "--print_tree",
-                                      "--generate", "--seed", "--size", "--overlap", "--pairs", "--build",
-                                      "--no_output", "--help"};
   std::string message = "unknown argument '" + arg + "'";
   if (arg.size() > 2 && arg.size() < 40 && arg[0] == '-') {
     std::string best;
     std::size_t best_distance = 3;
-    for (const char *name : names) {
+    auto consider = [&](const char *name) {
       const std::size_t d = edit_distance(arg, name);
       if (d < best_distance) best_distance = d, best = name;
-    }
+    };
+    for (const char *name : kOptions) consider(name);
+    consider(kHelpOption);
     if (!best.empty()) message += "; did you mean " + best + "?";
   } else if (arg[0] != '-' && (ends_with(arg, ".disks") || ends_with(arg, ".triangles") ||
                                ends_with(arg, ".quads") || ends_with(arg, ".shapes"))) {
@@ -500,9 +593,9 @@ Options parse_options(int argc, char **argv) {
     } else if (name == "--output") {
       o.output = value();
     } else if (name == "--split_threshold") {
-      o.split_threshold = int(parse_integer(arg, value(), 1, 1000000));
+      o.split_threshold = int(parse_integer(arg, value(), 1, INT_MAX));
     } else if (name == "--depth_limit") {
-      o.depth_limit = int(parse_integer(arg, value(), 0, 1000000));
+      o.depth_limit = int(parse_integer(arg, value(), 0, INT_MAX));
     } else if (name == "--incremental") {
       o.incremental = true;
     } else if (name == "--discard_overlap") {
@@ -571,10 +664,14 @@ Options parse_options(int argc, char **argv) {
   return o;
 }
 
+/// The input file, closed when it goes.
+using InputFile = std::unique_ptr<std::FILE, int (*)(std::FILE *)>;
+
 /// Checks, before any work, that the input can be opened, that the output
 /// can be created, and that they are not one file (through a link): the
 /// picture would replace the scene. Sets `error` (exit status 2) if not.
-[[maybe_unused]] bool check_files(const Options &o, std::string &error) {
+/// The input is opened here, once, and `input` keeps it for the reading.
+[[maybe_unused]] bool check_files(const Options &o, InputFile &input, std::string &error) {
   std::error_code ec;
   if (!o.generate) {
     // fopen succeeds on a directory on Linux; only reading it fails.
@@ -582,12 +679,11 @@ Options parse_options(int argc, char **argv) {
       error = o.input + ": cannot open: " + std::strerror(EISDIR);
       return false;
     }
-    std::FILE *in = std::fopen(o.input.c_str(), "rb");
-    if (!in) {
+    input.reset(std::fopen(o.input.c_str(), "rb"));
+    if (!input) {
       error = o.input + ": cannot open: " + std::strerror(errno);
       return false;
     }
-    std::fclose(in);
     if (o.no_output) return true;
     if (std::filesystem::equivalent(o.input, o.output, ec)) {
       error = "-i and -o name the same file: '" + o.output + "'";
@@ -601,7 +697,7 @@ Options parse_options(int argc, char **argv) {
   // The output is written under this name, then renamed. Whatever holds the
   // name now (a stale temporary, or a link that would be written through)
   // goes first; removing a link leaves its target alone.
-  const std::string temp = o.output + ".partial";
+  const std::string temp = bvh::partial_path(o.output);
   std::remove(temp.c_str());
   std::FILE *probe = std::fopen(temp.c_str(), "wbx");
   if (!probe) {
@@ -627,9 +723,11 @@ int bvh_main(int argc, char **argv) {
     }
   Options o;
   std::string error;
+  InputFile input(nullptr, &std::fclose);
   try {
     o = parse_options(argc, argv);
-    if (!check_files(o, error)) throw UsageError{error, false};
+    if (!o.no_output) remove_partial_on_signals(bvh::partial_path(o.output));
+    if (!check_files(o, input, error)) throw UsageError{error, false};
   } catch (const UsageError &e) {
     std::cerr << "bvh.out: " << e.message << "\n";
     if (e.show_usage) std::cerr << kUsage;
@@ -646,10 +744,10 @@ int bvh_main(int argc, char **argv) {
       if (o.kind == "quads") return generate<Quad>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
       return generate<Shape>(o.kind, o.count, o.seed, lo, hi, o.overlap, o.output);
     }
-    if (ends_with(o.input, ".disks")) return run_at<Disk>(o);
-    if (ends_with(o.input, ".triangles")) return run_at<Triangle>(o);
-    if (ends_with(o.input, ".quads")) return run_at<Quad>(o);
-    return run_at<Shape>(o);
+    if (ends_with(o.input, ".disks")) return run_at<Disk>(o, input.get());
+    if (ends_with(o.input, ".triangles")) return run_at<Triangle>(o, input.get());
+    if (ends_with(o.input, ".quads")) return run_at<Quad>(o, input.get());
+    return run_at<Shape>(o, input.get());
   } catch (const std::bad_alloc &) {
     // A scene too big for this machine's memory.
     std::cerr << "bvh.out: out of memory\n";
@@ -675,5 +773,16 @@ int bvh_parse_command_line(int argc, char **argv, int &split_threshold, int &dep
 }
 
 #ifndef BVH_NO_MAIN
-int main(int argc, char **argv) { return bvh_main(argc, argv); }
+int main(int argc, char **argv) {
+  hold_closed_standard_descriptors();
+  const int status = bvh_main(argc, argv);
+  g_partial = nullptr; // (g_partial_name goes after main)
+  // What is still unwritten (--help's text) or unreported.
+  std::string error;
+  if (!stdout_written(error) && status == 0) {
+    std::cerr << "bvh.out: " << error << "\n";
+    return 1;
+  }
+  return status;
+}
 #endif

@@ -448,12 +448,21 @@ struct NoProgress {
   void operator()(std::uint64_t /*bytes_read*/) const {}
 };
 
-/// Reads the scene file `path` and appends its shapes to `out`; false with
-/// `error` ("PATH: cannot open: ...", or parse_scene's message) otherwise.
-/// The file is read `chunk` bytes at a time (tests vary it) and each chunk's
+/// Reads the scene from `file`, already open for reading, to its end and
+/// appends its shapes to `out`; false with `error` ("PATH: cannot read:
+/// ...", or parse_scene's message, `path` naming the file) otherwise. The
+/// file is read `chunk` bytes at a time (tests vary it) and each chunk's
 /// complete lines parsed at once, so memory stays small and a broken file
 /// (even an endless one) fails at its first bad line. `progress(bytes)` is
-/// called after each chunk with the bytes read so far (bvh.out's progress line).
+/// called after each chunk with the bytes read so far (bvh.out's progress
+/// line). The caller closes `file`. (bvh.out opens its input once and reads
+/// it from here: a FIFO or a device cannot be opened twice for one stream.)
+template <class T, class Progress = NoProgress>
+bool load_scene(std::FILE *file, const std::string &path, std::vector<T> &out, std::string &error,
+                std::size_t chunk = kReadChunk, Progress progress = Progress());
+
+/// Opens the scene file `path` and reads it as above; false with `error`
+/// ("PATH: cannot open: ...", or the reading's message) otherwise.
 template <class T, class Progress = NoProgress>
 bool load_scene(const std::string &path, std::vector<T> &out, std::string &error, std::size_t chunk = kReadChunk,
                 Progress progress = Progress()) {
@@ -462,6 +471,12 @@ bool load_scene(const std::string &path, std::vector<T> &out, std::string &error
     error = path + ": cannot open: " + std::strerror(errno);
     return false;
   }
+  return load_scene(file.get(), path, out, error, chunk, progress);
+}
+
+template <class T, class Progress>
+bool load_scene(std::FILE *file, const std::string &path, std::vector<T> &out, std::string &error,
+                std::size_t chunk, Progress progress) {
   if (chunk < 1) chunk = 1;
   // An unfinished line waits at the front of the buffer for the rest of it;
   // one longer than this (a line and its '\r') is an error already.
@@ -473,8 +488,8 @@ bool load_scene(const std::string &path, std::vector<T> &out, std::string &error
   bool at_start = true;
   std::uint64_t total = 0;
   for (;;) {
-    const std::size_t got = std::fread(buf + have, 1, chunk, file.get());
-    if (got < chunk && std::ferror(file.get())) {
+    const std::size_t got = std::fread(buf + have, 1, chunk, file);
+    if (got < chunk && std::ferror(file)) {
       error = path + ": cannot read: " + std::strerror(errno);
       return false;
     }

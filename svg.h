@@ -67,13 +67,17 @@ inline void render_end(std::ostream &ostr) {
           "</svg>\n";
 }
 
+/// The temporary name under which write_svg writes `path` (bvh.out's
+/// signal handler removes it).
+inline std::string partial_path(const std::string &path) { return path + ".partial"; }
+
 /// Writes the whole picture of `tree` to `path`. With `visualize`, node
 /// boxes are drawn and shapes recoloured by leaf (the tree's colours change).
 /// Returns false and sets `*error` when the file cannot be written; the
 /// destination is then left as it was.
 template <class T, class Tr, int W>
 bool write_svg(const std::string &path, BVH<T, Tr, W> &tree, bool visualize, std::string *error = nullptr) {
-  const std::string temp = path + ".partial";
+  const std::string temp = partial_path(path);
   {
     std::ofstream ostr(temp, std::ios::binary | std::ios::trunc);
     if (!ostr) {

@@ -76,6 +76,32 @@ expect cli_width_not_a_number 2 "--width needs 2, 3, 4 or 8, not 'x'" -- -i $goo
 expect cli_width_missing_value 2 "--width needs a value" -- -i $good -o "$o" --width
 expect cli_fractional_depth 2 "--depth_limit needs an integer" -- -i $good -o "$o" --depth_limit 2.5
 expect cli_huge_number 2 "--split_threshold needs an integer" -- -i $good -o "$o" --split_threshold 99999999999999999999
+# The limits' extremes: up to INT_MAX, which the library takes (a tree of
+# one leaf); one past it, or past any integer, is a usage error.
+expect cli_threshold_past_int_max 2 "--split_threshold needs an integer from 1 to 2147483647, not '2147483648'" -- \
+  -i $good -o "$o" --split_threshold 2147483648
+expect cli_depth_past_int_max 2 "--depth_limit needs an integer from 0 to 2147483647, not '99999999999'" -- \
+  -i $good -o "$o" --depth_limit 99999999999
+expect cli_threads_past_unsigned 2 "--threads needs an integer from 1 to 1024, not '4294967297'" -- \
+  -i $good -o "$o" --threads 4294967297
+for mode in "" --incremental "--incremental --discard_overlap"; do
+  name=cli_int_max_limits${mode:+_${mode//[- ]/}}
+  # shellcheck disable=SC2086 # (mode: words)
+  if timeout 60 "$bin" -i $good -o "$o" --split_threshold 2147483647 --depth_limit 2147483647 $mode --print_tree --pairs \
+    >"$dir/stdout" 2>"$dir/stderr" && grep -q "^node count:            1$" "$dir/stdout" &&
+    grep -q "^overlapping pairs: 0$" "$dir/stdout" && [ ! -s "$dir/stderr" ] && grep -q "</svg>" "$o"; then
+    echo "ok $name$tag"
+  else
+    echo "FAIL $name$tag $(head -c 300 "$dir/stderr")"
+  fi
+done
+if timeout 60 "$bin" -i inputs/gen_overlap_1000.disks --no_output --split_threshold 1 --depth_limit 2147483647 --incremental \
+  --pairs >"$dir/stdout" 2>"$dir/stderr" && [ ! -s "$dir/stderr" ] &&
+  [ "$("$bin" -i inputs/gen_overlap_1000.disks --no_output --pairs)" = "$(grep '^overlapping pairs' "$dir/stdout")" ]; then
+  echo "ok cli_threshold_one_unlimited_depth$tag"
+else
+  echo "FAIL cli_threshold_one_unlimited_depth$tag $(head -c 300 "$dir/stderr")"
+fi
 expect cli_empty_number 2 "--depth_limit needs (a value|an integer)" -- -i $good -o "$o" --depth_limit ""
 expect cli_output_under_a_file 2 "cannot write" -- -i $good -o "$good/out.html"
 expect cli_input_is_a_directory 2 "cannot open|cannot read|is a directory" -- -i "$dir/dir.disks" -o "$o"
@@ -96,6 +122,17 @@ expect cli_single_dash_flag_suggests_nearest 2 "did you mean --print_tree\?" -- 
 expect cli_scene_without_i_suggests_i 2 "unknown argument 'gen_36.disks'; did you mean -i gen_36.disks\?" -- \
   gen_36.disks -o "$o"
 expect cli_far_word_gets_no_guess 2 "unknown argument '--bogus'\$" -- -i $good -o "$o" --bogus
+expect cli_thread_suggests_threads 2 "unknown argument '--thread'; did you mean --threads\?" -- -i $good -o "$o" --thread 2
+expect cli_widht_suggests_width 2 "unknown argument '--widht'; did you mean --width\?" -- -i $good -o "$o" --widht 3
+# Every option --help lists, its last letter dropped, gets that option.
+options=$("$bin" --help | grep -oE -- '--[a-z_]+' | sort -u)
+missed=
+for opt in $options; do
+  timeout 60 "$bin" "${opt%?}" >/dev/null 2>"$dir/stderr"
+  grep -qF "unknown argument '${opt%?}'; did you mean $opt?" "$dir/stderr" || missed="$missed $opt"
+done
+if [ -n "$options" ] && [ -z "$missed" ]; then echo "ok cli_every_option_near_miss_suggests_it$tag"; else
+  echo "FAIL cli_every_option_near_miss_suggests_it$tag no suggestion for:${missed:- (no options in --help)}"; fi
 # A file that cannot be opened or written: its one line, without the usage.
 one_line() { # NAME: the last case's stderr is exactly one line
   if [ "$(wc -l <"$dir/stderr")" -eq 1 ] && ! grep -q '^usage:' "$dir/stderr"; then echo "ok $1$tag"; else
@@ -209,6 +246,149 @@ printf 'pt= <x> radius= 1 color= {1 2 3}\n' >"$dir/broken.disks"
 "$bin" -i "$dir/broken.disks" -o "$o" >/dev/null 2>&1
 if [ "$(cat "$o")" = keep ]; then echo "ok input_error_keeps_existing_output$tag"; else
   echo "FAIL input_error_keeps_existing_output$tag the old file was replaced"; fi
+
+# Standard output that cannot be written: one line, exit 1, no picture. A
+# full device (the statistics, the pairs, a long --print_tree, --help) and a
+# closed stdout (`>&-`: EBADF).
+stdout_fails() { # NAME PATTERN REDIRECTION ARGS...
+  local name=$1$tag pattern=$2 how=$3 rc
+  shift 3
+  rm -f "$o" "$o.partial"
+  if [ "$how" = closed ]; then
+    timeout 60 "$bin" "$@" 2>"$dir/stderr" >&-
+  else
+    timeout 60 "$bin" "$@" 2>"$dir/stderr" >"$how"
+  fi
+  rc=$?
+  if [ $rc -eq 1 ] && grep -qE "^bvh.out: error writing standard output: $pattern\$" "$dir/stderr" &&
+    [ "$(wc -l <"$dir/stderr")" -eq 1 ] && [ ! -e "$o" ] && [ ! -e "$o.partial" ]; then
+    echo "ok $name"
+  else
+    echo "FAIL $name exit $rc: $(head -c 300 "$dir/stderr")"
+  fi
+}
+if [ -w /dev/full ]; then
+  stdout_fails cli_stdout_full_pairs "No space left on device" /dev/full -i $good -o "$o" --pairs
+  stdout_fails cli_stdout_full_statistics "No space left on device" /dev/full -i $good -o "$o" --depth_limit 2
+  stdout_fails cli_stdout_full_long_tree "No space left on device" /dev/full -i inputs/gen_1000.disks -o "$o" \
+    --depth_limit 8 --print_tree --pairs
+  stdout_fails cli_stdout_full_help "No space left on device" /dev/full --help
+else
+  echo "skip cli_stdout_full: no /dev/full"
+fi
+stdout_fails cli_stdout_closed_pairs "Bad file descriptor" closed -i $good -o "$o" --pairs
+stdout_fails cli_stdout_closed_statistics "Bad file descriptor" closed -i $good -o "$o" --depth_limit 3 --print_tree
+# (Nothing to print: a closed stdout is no error.)
+if timeout 60 "$bin" -i $good -o "$o" 2>"$dir/stderr" >&- && [ ! -s "$dir/stderr" ] && grep -q "</svg>" "$o"; then
+  echo "ok cli_stdout_closed_unused$tag"
+else
+  echo "FAIL cli_stdout_closed_unused$tag $(head -c 300 "$dir/stderr")"
+fi
+
+# A FIFO as the scene: read once (opened twice, the first open took the
+# writer's lines and the second waited for a writer forever).
+rm -f "$dir/fifo.disks"
+if mkfifo "$dir/fifo.disks" 2>/dev/null; then
+  "$bin" -i $good --no_output --depth_limit 2 --print_tree --pairs >"$dir/expected" 2>&1
+  failed=
+  for run in 1 2 3 4 5 6; do
+    cat $good >"$dir/fifo.disks" &
+    writer=$!
+    timeout 10 "$bin" -i "$dir/fifo.disks" -o "$o" --depth_limit 2 --print_tree --pairs >"$dir/stdout" 2>&1
+    rc=$?
+    kill $writer 2>/dev/null
+    wait $writer 2>/dev/null
+    if [ $rc -ne 0 ] || ! cmp -s "$dir/stdout" "$dir/expected" || ! grep -q "</svg>" "$o"; then
+      failed="run $run: exit $rc (124: it hung) $(head -c 200 "$dir/stdout")"
+      break
+    fi
+  done
+  if [ -z "$failed" ]; then echo "ok cli_fifo_input_read_once$tag"; else echo "FAIL cli_fifo_input_read_once$tag $failed"; fi
+else
+  echo "skip cli_fifo_input_read_once: mkfifo failed"
+fi
+
+# A signal while the picture is written (a scene of 50000 disks, its
+# picture some megabytes): the temporary goes, and the status is the
+# signal's. The run is stopped once the temporary has content, the
+# signal sent and the run continued, so the signal meets the writing.
+# (set -m: a background job of a script otherwise ignores SIGINT, and a
+# signal ignored at the start stays ignored.)
+awk 'BEGIN { srand(7); for (i = 0; i < 50000; i++)
+  printf "pt= <%.1f %.1f> radius= 0.5 color= {1 2 3}\n", 1 + rand() * 998, 1 + rand() * 998 }' >"$dir/big.disks"
+signal_removes_partial() { # NAME SIGNAL STATUS
+  local name=$1$tag sig=$2 status=$3 try i rc pid seen=no
+  for try in 1 2 3; do
+    rm -f "$o" "$o.partial"
+    set -m
+    "$bin" -i "$dir/big.disks" -o "$o" --visualize >/dev/null 2>"$dir/stderr" &
+    pid=$!
+    set +m
+    for ((i = 0; i < 6000; i++)); do # (at most a minute)
+      if [ -s "$o.partial" ]; then
+        kill -STOP $pid
+        [ -s "$o.partial" ] && seen=yes
+        break
+      fi
+      kill -0 $pid 2>/dev/null || break
+      sleep 0.01
+    done
+    kill -"$sig" $pid 2>/dev/null
+    kill -CONT $pid 2>/dev/null
+    wait $pid
+    rc=$?
+    [ $seen = yes ] && break
+  done
+  if [ $seen != yes ]; then
+    echo "FAIL $name the temporary was never seen: exit $rc $(head -c 200 "$dir/stderr")"
+  elif [ $rc -ne "$status" ] || [ -e "$o.partial" ] || [ -e "$o" ]; then
+    echo "FAIL $name exit $rc (expected $status); left behind: $(cd "$dir" && echo out.html*) $(head -c 200 "$dir/stderr")"
+  else
+    echo "ok $name"
+  fi
+}
+signal_removes_partial cli_sigint_removes_partial INT 130
+signal_removes_partial cli_sigterm_removes_partial TERM 143
+# The same for a generated scene, whose temporary exists only while one
+# large write runs: strace holds that write for a second, and the signal
+# (to strace's child, the run) meets it.
+if strace -o /dev/null true 2>/dev/null; then
+  rm -f "$dir/g.disks" "$dir/g.disks.partial"
+  set -m
+  strace -f -o /dev/null -e trace=write,writev -e inject=write,writev:delay_enter=1000000 \
+    "$bin" --generate disks 1000 --overlap -o "$dir/g.disks" 2>"$dir/stderr" &
+  tracer=$!
+  set +m
+  for ((i = 0; i < 3000; i++)); do
+    [ -e "$dir/g.disks.partial" ] && break
+    sleep 0.01
+  done
+  sleep 0.3 # (past check_files' empty probe, into the held write)
+  seen=no
+  [ -e "$dir/g.disks.partial" ] && seen=yes
+  kill -INT "$(pgrep -P $tracer)" 2>/dev/null
+  wait $tracer
+  rc=$?
+  if [ $seen = yes ] && [ $rc -eq 130 ] && [ ! -e "$dir/g.disks.partial" ] && [ ! -e "$dir/g.disks" ]; then
+    echo "ok cli_sigint_removes_generated_partial$tag"
+  else
+    echo "FAIL cli_sigint_removes_generated_partial$tag temporary seen: $seen, exit $rc; left behind: $(cd "$dir" && echo g.disks*)"
+  fi
+else
+  echo "skip cli_sigint_removes_generated_partial: strace cannot trace here"
+fi
+
+# Accepted: a UTF-8 byte-order mark at the start of the scene (some
+# editors write one); anywhere else it is a wrong byte.
+printf '\xef\xbb\xbfpt= <1 2> radius= 3 color= {1 2 3}\n' >"$dir/bom.disks"
+if "$bin" -i "$dir/bom.disks" -o "$o" --depth_limit 1 --print_tree >"$dir/stdout" 2>&1 &&
+  grep -q "elements: \[< -2.0  -1.0> <  4.0   5.0>\]$" "$dir/stdout"; then
+  echo "ok input_byte_order_mark_accepted$tag"
+else
+  echo "FAIL input_byte_order_mark_accepted$tag $(head -c 300 "$dir/stdout")"
+fi
+bad_scene input_byte_order_mark_on_line_two disks "\.disks:2: expected 'pt=', found byte 0xef" \
+  'pt= <1 2> radius= 3 color= {1 2 3}\n\xef\xbb\xbfpt= <1 2> radius= 3 color= {1 2 3}\n'
 
 # Accepted: CRLF, blank lines, trailing blanks, an empty scene.
 printf 'pt= <1 2> radius= 3 color= {1 2 3}\r\n\r\n  pt=  < 4 5 >  radius=  1  color=  { 0 0 0 }   \n' >"$dir/crlf.disks"

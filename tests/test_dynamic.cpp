@@ -712,6 +712,111 @@ TEST(sah_build_valid_and_correct_quads) { sah_build_against_brute_force<Quad>(ba
 TEST(sah_build_valid_and_correct_mixed) { sah_build_against_brute_force<Shape>(base_seed() + 1700); }
 
 // ---------------------------------------------------------------------------
+// the parameters at their extremes
+
+/// Every operation with the parameters at their extremes, against the
+/// model: split_threshold 1 and INT_MAX (one leaf), depth_limit INT_MIN,
+/// -1, 0 and INT_MAX, thread counts past any machine's (UINT_MAX, 2^30),
+/// nearest(p, SIZE_MAX), and with `margins` the margins huge, infinite,
+/// NaN, negative and subnormal. The sanitizer build runs it: an overflow in
+/// the parameters' arithmetic (min_rebuild's split_threshold + 1, the
+/// batches' 4 * threads) is a report there. A huge thread count starts
+/// kMaxThreads threads: with `huge_threads`, in the first two rounds only,
+/// and not under valgrind (its scale, 0.1: there each thread's start
+/// costs milliseconds).
+template <int W> void extremes_against_model(unsigned seed, bool margins, bool huge_threads) {
+  const int int_max = std::numeric_limits<int>::max(), int_min = std::numeric_limits<int>::min();
+  const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
+  const int splits[] = {1, 2, int_max - 1, int_max};
+  const int depths[] = {int_min, -1, 0, 1, 3, int_max};
+  const double margin_values[] = {-1, nan, inf, -inf, std::numeric_limits<double>::denorm_min(), 0.5, 1e300,
+                                  std::numeric_limits<double>::max()};
+  const unsigned thread_counts[] = {std::numeric_limits<unsigned>::max(), 1u << 30, 1, 2};
+  huge_threads = huge_threads && scale() >= 0.3;
+  int round = 0;
+  for (int split : splits)
+    for (int depth : depths) {
+      const double margin = margins ? margin_values[unsigned(round) % 8] : 0;
+      const unsigned threads = thread_counts[round < 2 && huge_threads ? round : 2 + round % 2];
+      std::ostringstream what;
+      what << kind_at<Disk, W>() << " BVH_SEED=" << seed << " round " << round << ": split_threshold " << split
+           << ", depth_limit " << depth << ", margin " << margin << ", threads " << threads;
+      note(what.str());
+      Maker make(seed + unsigned(round), round % 3 == 0 ? 40.0 : 0.0); // a grid: ties and duplicates
+      ++round;
+      std::vector<Disk> model = make.template scene<Disk>(scaled(150), 30);
+      Tree<Disk, W> tree(split, depth);
+      CHECK_EQ(tree.split_threshold(), split);
+      CHECK_EQ(tree.depth_limit(), depth > 0 ? depth : 0);
+      tree.set_build_threads(threads);
+      const unsigned capped = threads < 1024 ? threads : 1024; // (bvh::detail::kMaxThreads)
+      CHECK_EQ(tree.build_threads(), capped);
+      tree.set_margin(margin);
+      CHECK(tree.margin() == (margin > 0 && margin < inf ? margin : 0.0));
+      // Half built in bulk, half inserted; some erased, some moved.
+      tree.construct(std::vector<Disk>(model.begin(), model.begin() + long(model.size() / 2)));
+      std::vector<typename Tree<Disk, W>::handle> handles;
+      for (std::size_t i = model.size() / 2; i < model.size(); ++i) handles.push_back(tree.insert(model[i]));
+      for (std::size_t i = 0; i < handles.size(); i += 5) {
+        Disk moved(make.near(model[model.size() / 2 + i].getCenter(), 3), 2, Color());
+        tree.update(handles[i], moved);
+        model[model.size() / 2 + i] = moved;
+      }
+      for (std::size_t i = 0; i < model.size() / 3; i += 7) {
+        const Disk value = model[i];
+        CHECK_EQ(tree.erase(value), std::size_t(std::count(model.begin(), model.end(), value)));
+        model.erase(std::remove(model.begin(), model.end(), value), model.end());
+      }
+      std::string why;
+      CHECK(tree.validate(&why));
+      if (!why.empty()) note(what.str() + ": " + why);
+      CHECK(same_shapes(contents(tree), model));
+      // Queries.
+      std::vector<Disk> probes;
+      std::vector<bool> expected;
+      for (int q = 0; q < 30; ++q) {
+        Disk probe;
+        make.make(probe, 60);
+        bool brute = false;
+        for (const Disk &s : model) brute = brute || model_intersect(s, probe);
+        CHECK_EQ(tree.collision(probe), brute);
+        probes.push_back(probe);
+        expected.push_back(brute);
+      }
+      CHECK(tree.collisions(probes) == expected);
+      const Point p(make.coord(0, 1000), make.coord(0, 1000));
+      std::vector<typename Tree<Disk, W>::neighbor> all;
+      tree.nearest(p, std::numeric_limits<std::size_t>::max(), std::back_inserter(all));
+      CHECK_EQ(all.size(), model.size());
+      std::vector<double> want, got;
+      for (const Disk &s : model) want.push_back(distance(p, s));
+      for (const auto &n : all) got.push_back(n.distance);
+      std::sort(want.begin(), want.end());
+      CHECK(got == want);
+      std::size_t pairs = 0;
+      for (std::size_t i = 0; i < model.size(); ++i)
+        for (std::size_t j = i + 1; j < model.size(); ++j) pairs += model_intersect(model[i], model[j]);
+      CHECK_EQ(tree.count_overlapping_pairs(), pairs);
+      // insert_disjoint on the same parameters: exactly the loop.
+      Tree<Disk, W> sampled(split, depth), looped(split, depth);
+      sampled.set_margin(margin);
+      looped.set_margin(margin);
+      const std::vector<Disk> candidates = make.template scene<Disk>(scaled(300), 30);
+      const std::vector<std::size_t> kept = sampled.insert_disjoint(candidates, threads);
+      std::vector<std::size_t> loop_kept;
+      for (std::size_t i = 0; i < candidates.size(); ++i)
+        if (!looped.collision(candidates[i])) looped.insert(candidates[i]), loop_kept.push_back(i);
+      CHECK(kept == loop_kept);
+      CHECK(contents(sampled) == contents(looped));
+      CHECK(sampled.validate(&why));
+    }
+}
+
+// (Margins at width 3: the wider trees' margins are the margin tests' own.)
+TEST(extreme_parameters_match_model) { extremes_against_model<3>(base_seed() + 3300, true, true); }
+TEST(width_8_extreme_parameters_match_model) { extremes_against_model<8>(base_seed() + 3400, false, false); }
+
+// ---------------------------------------------------------------------------
 // widths other than the course's 3: the same models (disks and mixed shapes)
 
 TEST(width_2_erase_churn_matches_model) { churn_against_model<Disk, 2>(base_seed() + 2000); }
@@ -970,7 +1075,8 @@ TEST(swap_exchanges_shapes_and_every_parameter) {
   CHECK(b.validate());
   b.set_build_threads(0); // 0: every core
   const unsigned cores = std::thread::hardware_concurrency();
-  CHECK_EQ(b.build_threads(), cores > 0 ? cores : 1u);
+  const unsigned capped = cores == 0 ? 1 : cores < 1024 ? cores : 1024;
+  CHECK_EQ(b.build_threads(), capped);
 }
 
 /// bounds(): the union of the stored shapes' boxes (margin 0), that union
