@@ -92,8 +92,9 @@
 #define BVH_HUGE_PAGES 0
 #endif
 // The leaf pool's large bookkeeping arrays mapped on their own
-// (MappedAllocator): Linux, whose glibc keeps a freed large array's pages.
-#if defined(__linux__)
+// (MappedAllocator): Linux, whose glibc keeps a freed large array's pages;
+// BVH_NO_MAPPED_ARRAYS turns it off.
+#if defined(__linux__) && !defined(BVH_NO_MAPPED_ARRAYS)
 #define BVH_MAPPED_ARRAYS 1
 #include <sys/mman.h>
 #else
