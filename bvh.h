@@ -1756,8 +1756,8 @@ private:
     void reserve_spare(std::size_t spare) {
       reserve_for(sizes, sizes.size() + spare);
       const std::size_t blocks = (sizes.size() + spare) / per_block_ + 1;
-      blocks_.reserve(blocks);
-      id_blocks_.reserve(blocks);
+      reserve_for(blocks_, blocks);
+      reserve_for(id_blocks_, blocks);
     }
     /// Gives back the room reserve_spare() made beyond what is used (the
     /// free slots keep room for every slot). Nothing changes if memory
