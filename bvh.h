@@ -485,10 +485,10 @@ template <class I, class A> void reserve_for(std::vector<I, A> &v, std::size_t n
 /// never touches take no memory, and all of its pages go back to the
 /// system when it is freed. From malloc, such arrays would stay in its
 /// heap once freed (glibc raises its mmap threshold to the size of a
-/// mapped block freed, so the next ones come from the heap), with every
-/// page any later allocation touched in them: on two threads a sampling
-/// run then held about twice the peak memory of one thread. Elsewhere it
-/// is std::allocator.
+/// mapped block freed, so the next ones come from the heap), resident in
+/// every page a later allocation touched in them, and sampling on several
+/// threads would peak far above one thread. Elsewhere it is
+/// std::allocator.
 template <class X> struct MappedAllocator {
   using value_type = X;
   MappedAllocator() = default;
