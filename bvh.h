@@ -91,6 +91,15 @@
 #else
 #define BVH_HUGE_PAGES 0
 #endif
+// The leaf pool's large bookkeeping arrays mapped on their own
+// (MappedAllocator): Linux, whose glibc keeps a freed large array's pages;
+// BVH_NO_MAPPED_ARRAYS turns it off.
+#if defined(__linux__) && !defined(BVH_NO_MAPPED_ARRAYS)
+#define BVH_MAPPED_ARRAYS 1
+#include <sys/mman.h>
+#else
+#define BVH_MAPPED_ARRAYS 0
+#endif
 
 // The only project header: with the course's shapes.h (the homework
 // server's) or this project's (which brings in the exact intersect.h and
@@ -464,9 +473,54 @@ private:
 /// Makes room in `v` for n elements, growing geometrically: the free lists
 /// keep room for every index they may be given back, so that giving one
 /// back (in an undo, or freeing a replaced subtree) never allocates.
-template <class I> void reserve_for(std::vector<I> &v, std::size_t n) {
+template <class I, class A> void reserve_for(std::vector<I, A> &v, std::size_t n) {
   if (v.capacity() < n) v.reserve(std::max(n, 2 * v.capacity()));
 }
+
+/// The allocator of the leaf pool's per-class arrays (slot sizes, free
+/// slots, block tables), which insert_disjoint's lanes reserve far beyond
+/// their use, in every class, and give back when the call ends. Where
+/// BVH_MAPPED_ARRAYS (Linux) an array of kMapped bytes or more is mapped
+/// on its own (mmap) and unmapped when freed: the pages of the reserve it
+/// never touches take no memory, and all of its pages go back to the
+/// system when it is freed. From malloc, such arrays would stay in its
+/// heap once freed (glibc raises its mmap threshold to the size of a
+/// mapped block freed, so the next ones come from the heap), resident in
+/// every page a later allocation touched in them, and sampling on several
+/// threads would peak far above one thread. Elsewhere it is
+/// std::allocator.
+template <class X> struct MappedAllocator {
+  using value_type = X;
+  MappedAllocator() = default;
+  template <class Y> MappedAllocator(const MappedAllocator<Y> &) noexcept {}
+  static constexpr std::size_t kMapped = std::size_t(1) << 17;
+  /// Whether an array of n is mapped (counted in elements: no overflow).
+  static bool mapped(std::size_t n) { return BVH_MAPPED_ARRAYS && n >= (kMapped + sizeof(X) - 1) / sizeof(X); }
+  X *allocate(std::size_t n) {
+    if (n > std::size_t(-1) / sizeof(X)) throw std::bad_alloc();
+#if BVH_MAPPED_ARRAYS
+    if (mapped(n)) {
+      void *p = ::mmap(nullptr, n * sizeof(X), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+      if (p == MAP_FAILED) throw std::bad_alloc();
+      return static_cast<X *>(p);
+    }
+#endif
+    return std::allocator<X>().allocate(n);
+  }
+  void deallocate(X *p, std::size_t n) noexcept {
+#if BVH_MAPPED_ARRAYS
+    if (mapped(n)) {
+      ::munmap(static_cast<void *>(p), n * sizeof(X));
+      return;
+    }
+#endif
+    std::allocator<X>().deallocate(p, n);
+  }
+  template <class Y> bool operator==(const MappedAllocator<Y> &) const noexcept { return true; }
+  template <class Y> bool operator!=(const MappedAllocator<Y> &) const noexcept { return false; }
+};
+/// A vector of MappedAllocator.
+template <class X> using MappedVector = std::vector<X, MappedAllocator<X>>;
 
 /// The float next to `f` towards -infinity (towards +infinity when `up`),
 /// by stepping its bit pattern: std::nextafter is a library call, and this
@@ -1849,20 +1903,20 @@ private:
     void reserve_spare(std::size_t spare) {
       reserve_for(sizes, sizes.size() + spare);
       const std::size_t blocks = (sizes.size() + spare) / per_block_ + 1;
-      blocks_.reserve(blocks);
-      id_blocks_.reserve(blocks);
+      reserve_for(blocks_, blocks);
+      reserve_for(id_blocks_, blocks);
     }
     /// Gives back the room reserve_spare() made beyond what is used (the
     /// free slots keep room for every slot). Nothing changes if memory
     /// for the smaller copies runs out.
     void shrink_spare() noexcept {
       try {
-        std::vector<std::uint32_t> free;
+        MappedVector<std::uint32_t> free;
         free.reserve(sizes.size());
         free.assign(free_slots.begin(), free_slots.end());
-        std::vector<std::uint32_t> used(sizes.begin(), sizes.end());
-        std::vector<T *> blocks(blocks_.begin(), blocks_.end());
-        std::vector<std::uint32_t *> id_blocks(id_blocks_.begin(), id_blocks_.end());
+        MappedVector<std::uint32_t> used(sizes.begin(), sizes.end());
+        MappedVector<T *> blocks(blocks_.begin(), blocks_.end());
+        MappedVector<std::uint32_t *> id_blocks(id_blocks_.begin(), id_blocks_.end());
         free_slots.swap(free);
         sizes.swap(used);
         blocks_.swap(blocks);
@@ -1879,10 +1933,10 @@ private:
     void drop() noexcept {
       BVH_INVARIANT(free_slots.size() == sizes.size(), "dropping a class with slots in use");
       destroy();
-      std::vector<std::uint32_t>().swap(sizes);
-      std::vector<std::uint32_t>().swap(free_slots);
-      std::vector<T *>().swap(blocks_);
-      std::vector<std::uint32_t *>().swap(id_blocks_);
+      MappedVector<std::uint32_t>().swap(sizes);
+      MappedVector<std::uint32_t>().swap(free_slots);
+      MappedVector<T *>().swap(blocks_);
+      MappedVector<std::uint32_t *>().swap(id_blocks_);
     }
     /// Destroys slot i's shapes.
     void clear(std::uint32_t i) noexcept {
@@ -1934,12 +1988,12 @@ private:
     std::size_t per_block_;
 
   public:
-    std::vector<std::uint32_t> sizes; ///< shapes in each slot (0 when free)
-    std::vector<std::uint32_t> free_slots; ///< slots given back
+    MappedVector<std::uint32_t> sizes; ///< shapes in each slot (0 when free)
+    MappedVector<std::uint32_t> free_slots; ///< slots given back
 
   private:
-    std::vector<T *> blocks_;
-    std::vector<std::uint32_t *> id_blocks_; // parallel to blocks_
+    MappedVector<T *> blocks_;
+    MappedVector<std::uint32_t *> id_blocks_; // parallel to blocks_
     void add_block() {
       const std::size_t n = per_block_ * capacity_;
       reserve_for(blocks_, blocks_.size() + 1);

@@ -4,7 +4,9 @@
 # same stdout and write the same picture, byte for byte, for N = 1 (the
 # plain loop), 2, 3 and 8, on the course's overlap_* scenes, on inputs/ and
 # on a generated 300k-disk scene (several insert_disjoint calls, batches of
-# every size). Prints `ok NAME` or `FAIL NAME why` per case.
+# every size); on that scene also that sampling on 2 threads peaks at no
+# more than 1.25x the memory of 1 thread (peak RSS, with python3). Prints
+# `ok NAME`, `FAIL NAME why` or `skip NAME why` per case.
 set -u
 cd "$(dirname "$0")/.."
 dir=${1:-build/test-out/cli_threads}
@@ -13,13 +15,25 @@ course=${3:-../shared/course}
 rm -rf "$dir"
 mkdir -p "$dir"
 
+# With python3, each run of same_for_all_threads below also writes the
+# peak RSS of its process, in kB, to $dir/NAME.N.rss.
+measure='import resource, subprocess, sys
+rc = subprocess.call(sys.argv[2:])
+with open(sys.argv[1], "w") as f:
+    f.write("%d\n" % resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)
+sys.exit(rc)'
+measured=()
+command -v python3 >/dev/null 2>&1 && measured=(python3 -c "$measure")
+
 # same_for_all_threads NAME ARGS...: runs ARGS with each --threads N and
 # compares the outputs with N = 1's.
 same_for_all_threads() {
-  local name=$1 n why=
+  local name=$1 n why= run
   shift
   for n in 1 2 3 8; do
-    if ! "$bin" "$@" -o "$dir/$name.$n.html" --threads "$n" >"$dir/$name.$n.txt" 2>"$dir/$name.$n.err"; then
+    run=("$bin")
+    [ ${#measured[@]} = 0 ] || run=("${measured[@]}" "$dir/$name.$n.rss" "$bin")
+    if ! "${run[@]}" "$@" -o "$dir/$name.$n.html" --threads "$n" >"$dir/$name.$n.txt" 2>"$dir/$name.$n.err"; then
       why="--threads $n failed: $(head -c 200 "$dir/$name.$n.err")"
       break
     fi
@@ -45,6 +59,20 @@ same_for_all_threads discard_k2_d3_overlap_1000_quads -i inputs/gen_overlap_1000
 # Bulk: construct()'s threads (a scene above kParallelMin = 65536 shapes).
 if "$bin" --generate disks 300000 --seed 5 --overlap --size 0.3:1.2 -o "$dir/big.disks" 2>"$dir/big.err"; then
   same_for_all_threads discard_generated_300k_disks -i "$dir/big.disks" --depth_limit 12 --incremental --discard_overlap --pairs
+  # Sampling on 2 threads (insert_disjoint's lanes) holds at most 1.25x
+  # the peak memory of 1 thread: the lanes' reserves of room must not stay
+  # resident (MappedAllocator in bvh.h).
+  one=$(cat "$dir/discard_generated_300k_disks.1.rss" 2>/dev/null)
+  two=$(cat "$dir/discard_generated_300k_disks.2.rss" 2>/dev/null)
+  if [ ${#measured[@]} = 0 ]; then
+    echo "skip cli_threads_memory_generated_300k_disks python3 is missing (it measures the peak RSS)"
+  elif [ -z "$one" ] || [ -z "$two" ]; then
+    echo "FAIL cli_threads_memory_generated_300k_disks no peak RSS in $dir/discard_generated_300k_disks.{1,2}.rss"
+  elif [ $((4 * two)) -le $((5 * one)) ]; then
+    echo "ok cli_threads_memory_generated_300k_disks"
+  else
+    echo "FAIL cli_threads_memory_generated_300k_disks peak RSS ${two} kB on 2 threads > 1.25 x ${one} kB on 1"
+  fi
   same_for_all_threads bulk_generated_300k_disks -i "$dir/big.disks" --depth_limit 12 --visualize
 else
   echo "FAIL cli_threads_generate $(head -c 200 "$dir/big.err")"
