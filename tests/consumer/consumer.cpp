@@ -7,6 +7,7 @@
 
 #include <bvh/bvh.h>
 #include <bvh/scene.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect), unqualified
 
 static_assert(__cplusplus >= 201703L, "bvh::bvh asks for C++17");
 // bvh::bvh puts only the folder that holds bvh/ on the include path, both

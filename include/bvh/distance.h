@@ -124,9 +124,5 @@ inline double ray_hit(const Point &origin, const Point &dir, const Shape &s) {
 
 } // namespace bvh
 
-#ifndef BVH_NO_GLOBAL_NAMES
-using bvh::distance;
-using bvh::ray_hit;
-#endif
 
 #endif // BVH_DISTANCE_H
