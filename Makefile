@@ -87,6 +87,11 @@ $(BUILD)/test_%_san: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 $(BUILD)/test_exceptions: tests/test_exceptions.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -std=c++20 -Iinclude -Itests $< -o $@
 
+# The two editions against each other (the top-level bvh.h, "bvh.h" through
+# -I., and the engine, <bvh/bvh.h> through -Iinclude).
+$(BUILD)/test_editions: tests/test_editions.cpp tests/check.h $(HEADERS) $(COURSE_HEADERS) | $(BUILD)
+	$(CXX) $(UNIT_CXXFLAGS) -I. -Iinclude -Itests $< -o $@
+
 $(BUILD)/test_units: $(UNITY_SOURCES) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -Iinclude -Itests $< -o $@
 
@@ -150,7 +155,7 @@ $(BUILD)/check:
 LONGEST := bvh.out $(BUILD)/test_units $(BUILD)/test_lanes $(BUILD)/test_exceptions
 test-build-longest: $(LONGEST)
 test-build-san: $(SAN_TESTS)
-test-build-gcc: $(TESTS) $(TSAN_TESTS) bvh.out $(ASSERT_TESTS) $(EXAMPLES)
+test-build-gcc: $(TESTS) $(BUILD)/test_editions $(TSAN_TESTS) bvh.out $(ASSERT_TESTS) $(EXAMPLES)
 test-build: test-build-longest $(BUILD)/bvh_san.out test-build-san test-build-gcc $(BUILD)/fuzz_parser_O0
 
 # Every test; ends with "N passed, M failed" and fails when M > 0. The

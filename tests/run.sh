@@ -214,6 +214,8 @@ unit_tests() {
   run_suite test_lazy_handles "$BUILD/test_lanes" lazy_handles
   run_suite test_parse "$BUILD/test_units" parse
   run_suite test_names "$BUILD/test_names"
+  # The course's edition (bvh.h) and the engine (include/bvh/) on the same scenes.
+  run_suite test_editions "$BUILD/test_editions"
   run_suite test_disjoint "$BUILD/test_lanes" disjoint
   # Fault injection: every mutating operation at its k-th copy and allocation (issue 21).
   run_suite test_exceptions "$BUILD/test_exceptions"
