@@ -11,7 +11,7 @@ BUILD ?= build
 HEADERS := bvh.h shapes.h intersect.h distance.h svg.h scene.h
 # Parallel jobs of make test's build (and of tests/run.sh's layers).
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
-UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions lazy_handles
+UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions lazy_handles editions
 # make test builds six of the suites as one program, build/test_units
 # (tests/units.cpp: each suite in a namespace of its own, run as
 # build/test_units SUITE), so that the trees they share compile once per
@@ -25,7 +25,9 @@ UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions la
 # check does.)
 UNITY := bvh dynamic moving intersect threads parse
 LANES := disjoint lazy_handles
-SOLO := names exceptions
+SOLO := names exceptions editions
+# test_editions compares the engine with the course's edition, edition/bvh.h.
+EDITION := edition/bvh.h
 TEST_HEADERS := tests/check.h tests/scenes.h tests/lanes_probe.h
 UNITY_SOURCES := tests/units.cpp $(UNITY:%=tests/test_%.cpp) $(TEST_HEADERS) $(HEADERS)
 LANES_SOURCES := tests/lanes.cpp $(LANES:%=tests/test_%.cpp) $(TEST_HEADERS) $(HEADERS)
@@ -78,6 +80,8 @@ $(BUILD)/test_%: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 
 $(BUILD)/test_%_san: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 	$(SAN_CXX) $(SANITIZE) -I. -Itests $< -o $@
+
+$(BUILD)/test_editions $(BUILD)/test_editions_san $(BUILD)/check/test_editions: $(EDITION)
 
 $(BUILD)/test_exceptions: tests/test_exceptions.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -std=c++20 -I. -Itests $< -o $@

@@ -154,7 +154,7 @@ public:
   /// unless it is at depth depth_limit (depth_limit <= 0: no limit). A
   /// split_threshold below 1 is taken as 1 (a leaf of 0 shapes could
   /// never stop splitting). O(1).
-  BVH(int split_threshold = 4, int depth_limit = 0)
+  explicit BVH(int split_threshold = 4, int depth_limit = 0)
       : split_threshold_(split_threshold < 1 ? 1 : split_threshold), depth_limit_(depth_limit < 0 ? 0 : depth_limit),
         rule_(BuildRule::course), root_(nullptr) {}
   /// A deep copy: every node and shape is copied. O(n).
@@ -204,15 +204,15 @@ public:
   /// maximum depth and the two sums of the surface area heuristic. O(n).
   void statistics(bool print_tree) const;
   /// Draws every node's box (root grey; its children red, green, blue;
-  /// deeper nodes their primary mixed with a third of the parent's colour
-  /// kept at two thirds) and recolours every shape to its leaf's colour.
-  /// O(n).
+  /// deeper nodes a third of their own primary and two thirds of their
+  /// parent's colour) and recolours every shape to its leaf's colour. O(n).
   void render_recolor(std::ostream &ostr);
 
   // ---- extra credit -------------------------------------------------------
 
-  /// Removes the shape at `pos` and returns the iterator to the shape that
-  /// followed it (see ERASE above). O(log n) amortised.
+  /// Removes the shape at `pos` (which must point at one) and returns the
+  /// iterator to the shape that followed it (see ERASE above). O(log n)
+  /// amortised.
   iterator erase(iterator pos);
   /// Selects the rule of later builds, splits and rebuilds. O(1).
   void set_build_rule(BuildRule rule) { rule_ = rule; }
@@ -255,8 +255,7 @@ private:
   static Node *copy_tree(const Node *from);
   static void destroy_tree(Node *node);
   static void free_children(Node *node);
-  template <class F> static void preorder(Node *from, F f);
-  template <class F> static void preorder(const Node *from, F f);
+  template <class P, class F> static void preorder(P from, F f); // P: Node * or const Node *
 
   void build_subtree(Node *node, std::vector<T> shapes, Cut how);
   static void thirds(std::size_t m, std::size_t cut[4]);
@@ -410,21 +409,18 @@ template <class T> void BVH<T>::fit(Node *node) {
   }
 }
 
-/// Calls f(node) on every node under `from` in pre-order (a node before its
-/// children, children left to right), with a stack of our own instead of
-/// recursion. O(n).
-template <class T> template <class F> void BVH<T>::preorder(Node *from, F f) {
-  std::vector<Node *> stack;
+/// Calls f(node) on every node under `from` (a Node * or a const Node *)
+/// in pre-order (a node before its children, children left to right),
+/// with a stack of our own instead of recursion. O(n).
+template <class T> template <class P, class F> void BVH<T>::preorder(P from, F f) {
+  std::vector<P> stack;
   if (from != nullptr) stack.push_back(from);
   while (!stack.empty()) {
-    Node *node = stack.back();
+    P node = stack.back();
     stack.pop_back();
     f(node);
     for (int c = node->num_children - 1; c >= 0; --c) stack.push_back(node->children[c]); // popped left first
   }
-}
-template <class T> template <class F> void BVH<T>::preorder(const Node *from, F f) {
-  preorder(const_cast<Node *>(from), [&f](Node *node) { f(static_cast<const Node *>(node)); });
 }
 
 /// Copies of every shape under `node`, in iteration order. O(m).
@@ -598,6 +594,10 @@ template <class T> double BVH<T>::cut_by_sah_on(std::vector<T> &shapes, bool by_
   if (m - i >= 2) j_right = best_cut(shapes, i, m, right_cost); // [0, i) [i, j) [j, m)
   cut[0] = 0;
   cut[3] = m;
+  if (i < 2 && m - i < 2) { // two shapes: two groups
+    cut[1] = cut[2] = i;
+    return total;
+  }
   if (left_cost + right_area <= left_area + right_cost) {
     cut[1] = j_left;
     cut[2] = i;
@@ -605,7 +605,7 @@ template <class T> double BVH<T>::cut_by_sah_on(std::vector<T> &shapes, bool by_
   }
   cut[1] = i;
   cut[2] = j_right;
-  return i >= 2 || m - i >= 2 ? left_area + right_cost : total;
+  return left_area + right_cost;
 }
 
 /// The extra-credit rule (see THE SURFACE AREA HEURISTIC): the SAH's groups
