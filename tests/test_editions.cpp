@@ -6,8 +6,9 @@
 // print the same statistics(true) report byte for byte, iterate the same
 // shapes in the same order, and keep the same shapes in discard-overlap
 // sampling (collision, then insert) with the same (this project's exact)
-// predicates. A failure prints the case's seed (BVH_SEED=... reruns it);
-// BVH_TEST_SCALE scales the rounds.
+// predicates. A failure prints the case's seed and the BVH_SEED (default
+// 20261207) and round that make it; BVH_TEST_SCALE scales the rounds
+// (40 a kind at 1).
 #include "shapes.h" // the project's shapes, under the course's global names
 #define BVH_NO_GLOBAL_NAMES // the engine's tree stays bvh::BVH; ::BVH is the edition's
 #include "bvh.h"
@@ -112,7 +113,7 @@ template <class T> std::string report_of(const BVH<T> &edition) { // it prints t
 
 // One random case: a scene, parameters, and a way to build (0 bulk,
 // 1 insert, 2 discard-overlap sampling). Returns false on a difference.
-template <class T> bool one_case(unsigned seed) {
+template <class T> bool one_case(unsigned seed, const std::string &rerun) {
   std::mt19937 rng(seed);
   const std::vector<T> shapes = scene<T>(rng, 1 + rng() % 1200);
   const int split_threshold = 1 + int(rng() % 8), depth_limit = int(rng() % 13), how = int(rng() % 3);
@@ -131,7 +132,7 @@ template <class T> bool one_case(unsigned seed) {
     if (keep_engine) engine.insert(shapes[i]);
     if (keep_edition) edition.insert(shapes[i]);
   }
-  note("seed " + std::to_string(seed) + ": " + std::to_string(shapes.size()) + " shapes, split_threshold " +
+  note("seed " + std::to_string(seed) + " (" + rerun + "): " + std::to_string(shapes.size()) + " shapes, split_threshold " +
        std::to_string(split_threshold) + ", depth_limit " + std::to_string(depth_limit) + ", " +
        (how == 0 ? "bulk" : how == 1 ? "insert" : "discard-overlap"));
   const bool same_kept = kept_engine == kept_edition;
@@ -146,7 +147,9 @@ template <class T> bool one_case(unsigned seed) {
 template <class T> void run_cases(unsigned salt) {
   const int rounds = int(40 * scale());
   for (int r = 0; r < rounds; ++r)
-    if (!one_case<T>(base_seed() + salt * 100003u + unsigned(r))) return; // (the first failure is enough)
+    if (!one_case<T>(base_seed() + salt * 100003u + unsigned(r),
+                     "BVH_SEED=" + std::to_string(base_seed()) + ", round " + std::to_string(r)))
+      return; // (the first failure is enough)
 }
 
 } // namespace
