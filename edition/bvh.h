@@ -132,6 +132,7 @@
 #include <iostream>
 #include <iterator>
 #include <limits>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -494,18 +495,16 @@ template <class T> void BVH<T>::free_children(Node *node) {
 /// non-empty group becomes a child, built the same way. A list of nodes to
 /// build replaces recursion. O(m log^2 m) by the course's rule.
 template <class T> void BVH<T>::build_subtree(Node *node, std::vector<T> shapes, Cut how) {
-  std::vector<std::pair<Node *, std::vector<T> > > todo;
-  todo.push_back(std::make_pair(node, std::vector<T>()));
-  todo.back().second.swap(shapes);
+  std::vector<std::pair<Node *, std::vector<T> > > todo; // nodes still to build, with their shapes
+  todo.emplace_back(node, std::move(shapes));
   while (!todo.empty()) {
     Node *n = todo.back().first;
-    std::vector<T> group;
-    group.swap(todo.back().second);
+    std::vector<T> group = std::move(todo.back().second);
     todo.pop_back();
     n->box = box_of(group);
     n->count = group.size();
     if (stays_leaf(group.size(), n->depth)) {
-      n->shapes.swap(group);
+      n->shapes = std::move(group);
       continue;
     }
     std::size_t cut[4]; // group g is [cut[g], cut[g + 1])
@@ -516,7 +515,8 @@ template <class T> void BVH<T>::build_subtree(Node *node, std::vector<T> shapes,
       if (cut[g + 1] == cut[g]) continue;
       Node *child = new Node(n, n->depth + 1, n->box);
       n->children[n->num_children++] = child;
-      todo.push_back(std::make_pair(child, std::vector<T>(group.begin() + long(cut[g]), group.begin() + long(cut[g + 1]))));
+      todo.emplace_back(child, std::vector<T>(std::make_move_iterator(group.begin() + std::ptrdiff_t(cut[g])),
+                                              std::make_move_iterator(group.begin() + std::ptrdiff_t(cut[g + 1]))));
     }
   }
 }
@@ -636,7 +636,7 @@ template <class T> void BVH<T>::rebuild(Node *node, Cut how) {
   std::vector<T> shapes = collect(node);
   free_children(node);
   node->shapes.clear();
-  build_subtree(node, shapes, how);
+  build_subtree(node, std::move(shapes), how);
 }
 
 // ===========================================================================
@@ -702,8 +702,8 @@ template <class T> void BVH<T>::insert(const T &shape) {
   node->shapes.push_back(shape); // step 2: into the leaf; split if too full
   if (!stays_leaf(node->count, node->depth)) {
     std::vector<T> shapes;
-    shapes.swap(node->shapes);
-    build_subtree(node, shapes, Cut::by_rule);
+    shapes.swap(node->shapes); // (the leaf's, the new one last)
+    build_subtree(node, std::move(shapes), Cut::by_rule);
   }
   for (std::size_t i = 0; i + 1 < path.size(); ++i) // step 3: the highest lopsided node
     if (path[i]->count >= min_rebuild() && lopsided(path[i + 1]->count, path[i]->count)) {
@@ -858,7 +858,7 @@ template <class T> void BVH<T>::rebalance_after_erase(Node *from) {
 template <class T> typename BVH<T>::iterator BVH<T>::erase(iterator pos) {
   const std::size_t rank = rank_of(pos); // the next shape will have this rank
   Node *leaf = const_cast<Node *>(pos.leaf_);
-  leaf->shapes.erase(leaf->shapes.begin() + long(pos.index_));
+  leaf->shapes.erase(leaf->shapes.begin() + std::ptrdiff_t(pos.index_));
   for (Node *n = leaf; n != nullptr; n = n->parent) {
     --n->count;
     fit(n); // boxes only shrink from their children: refit up to the root
