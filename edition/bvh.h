@@ -121,7 +121,12 @@
 // Nodes are allocated with new and owned by their parent (the root by the
 // tree). No function here recurses: traversals keep their own stack of
 // nodes (a std::vector), so even a deep tree (an SAH build without a depth
-// limit may be) cannot overflow the call stack.
+// limit may be) cannot overflow the call stack. The trees of the course's
+// rule and of insert are O(log n) deep anyway (see above).
+// If memory runs out (std::bad_alloc), every node allocated is still owned
+// by the tree and freed by its destructor; the copy constructor and
+// assignment then change nothing, while a build or insert that fails may
+// leave the tree's contents incomplete.
 #ifndef BVH_H
 #define BVH_H
 
