@@ -438,45 +438,51 @@ template <class T> std::vector<T> BVH<T>::collect(const Node *node) {
 }
 
 /// A deep copy of the subtree at `from` (nullptr for nullptr), node by node
-/// from a stack of (original, copy) pairs. If an allocation throws, what
-/// was copied is freed. O(n).
+/// from a stack of (original, copy) pairs. A copy counts only the children
+/// copied so far (num_children), so if an allocation throws, destroy_tree
+/// frees exactly what was copied. O(n).
 template <class T> typename BVH<T>::Node *BVH<T>::copy_tree(const Node *from) {
   if (from == nullptr) return nullptr;
-  Node *top = new Node(*from); // copies box, counts, shapes; children fixed below
-  std::vector<std::pair<const Node *, Node *> > stack(1, std::make_pair(from, top));
+  Node *top = new Node(*from); // box, depth, count and shapes; children below
+  top->parent = nullptr;
+  top->num_children = 0;
+  std::vector<std::pair<const Node *, Node *> > stack;
   try {
+    stack.push_back(std::make_pair(from, top));
     while (!stack.empty()) {
       const Node *original = stack.back().first;
       Node *copy = stack.back().second;
       stack.pop_back();
-      const int children = copy->num_children;
-      copy->num_children = 0; // counts only the copies made, for the cleanup
-      for (int c = 0; c < children; ++c) {
-        copy->children[c] = new Node(*original->children[c]);
-        copy->children[c]->parent = copy;
+      for (int c = 0; c < original->num_children; ++c) {
+        Node *child = new Node(*original->children[c]);
+        child->num_children = 0;
+        child->parent = copy;
+        copy->children[c] = child;
         copy->num_children = c + 1;
-        stack.push_back(std::make_pair(original->children[c], copy->children[c]));
+        stack.push_back(std::make_pair(original->children[c], child));
       }
     }
   } catch (...) {
-    for (std::size_t i = 0; i < stack.size(); ++i) stack[i].second->num_children = 0; // not yet copied below
     destroy_tree(top);
     throw;
   }
-  top->parent = nullptr;
   return top;
 }
 
-/// Deletes every node under `node` (nothing for nullptr), children first
-/// taken off each node so that no delete recurses. O(n).
+/// Deletes every node under `node` (nothing for nullptr) without
+/// allocating, so that it cannot fail: go down to a last child, taking it
+/// off its parent's list on the way, delete a node once it has no children
+/// left, then go back up by its parent link. O(n).
 template <class T> void BVH<T>::destroy_tree(Node *node) {
-  std::vector<Node *> stack;
-  if (node != nullptr) stack.push_back(node);
-  while (!stack.empty()) {
-    Node *n = stack.back();
-    stack.pop_back();
-    for (int c = 0; c < n->num_children; ++c) stack.push_back(n->children[c]);
-    delete n;
+  Node *const top = node;
+  while (node != nullptr) {
+    if (node->num_children > 0) {
+      node = node->children[--node->num_children];
+      continue;
+    }
+    Node *const parent = node == top ? nullptr : node->parent;
+    delete node;
+    node = parent;
   }
 }
 

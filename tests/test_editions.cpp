@@ -20,10 +20,39 @@
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <new>
 #include <random>
 #include <sstream>
 #include <string>
 #include <vector>
+
+// Allocation faults for the edition's copies (edition_copies_survive_failed_
+// allocations): operator new throws std::bad_alloc when the countdown,
+// counting allocations, reaches 0 (-1: never), as in test_exceptions.cpp.
+static long alloc_countdown = -1;
+// (g++ sees free() on operator new's pointer once both are inlined: they are this pair)
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+#endif
+void *operator new(std::size_t n) {
+  if (alloc_countdown >= 0 && alloc_countdown-- == 0) throw std::bad_alloc();
+  if (void *p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void *operator new[](std::size_t n) { return ::operator new(n); }
+// (the nothrow forms, which std::stable_sort's buffer uses, never fail here)
+void *operator new(std::size_t n, const std::nothrow_t &) noexcept { return std::malloc(n ? n : 1); }
+void *operator new[](std::size_t n, const std::nothrow_t &) noexcept { return std::malloc(n ? n : 1); }
+void operator delete(void *p, const std::nothrow_t &) noexcept { std::free(p); }
+void operator delete[](void *p, const std::nothrow_t &) noexcept { std::free(p); }
+void operator delete(void *p) noexcept { std::free(p); }
+void operator delete[](void *p) noexcept { std::free(p); }
+void operator delete(void *p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void *p, std::size_t) noexcept { std::free(p); }
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 namespace {
 
@@ -153,6 +182,39 @@ template <class T> void run_cases(unsigned salt) {
 }
 
 } // namespace
+
+// The edition's copy constructor and assignment, failing at their k-th
+// allocation for every k: each throws std::bad_alloc and changes nothing
+// (the assigned-to tree keeps its shapes), and what they had made is freed
+// (the sanitizer and valgrind builds see any leak or double free).
+TEST(edition_copies_survive_failed_allocations) {
+  std::mt19937 rng(base_seed());
+  const std::vector<Disk> shapes = scene<Disk>(rng, 100);
+  BVH<Disk> tree(2, 0), other(3, 4);
+  for (const Disk &d : shapes) tree.insert(d);
+  other.construct(std::vector<Disk>(shapes.begin(), shapes.begin() + 50));
+  const std::string tree_order = order_of(tree), other_order = order_of(other);
+  int failed = 0;
+  for (long k = 0;; ++k) {
+    note("failing allocation " + std::to_string(k));
+    bool threw = false;
+    alloc_countdown = k;
+    try {
+      BVH<Disk> copy(tree);
+      other = tree;
+    } catch (const std::bad_alloc &) {
+      threw = true;
+    }
+    alloc_countdown = -1;
+    if (!threw) break;
+    ++failed;
+    CHECK(order_of(tree) == tree_order);
+    CHECK(order_of(other) == other_order); // (whether the copy or the assignment failed)
+    other.construct(std::vector<Disk>(shapes.begin(), shapes.begin() + 50)); // as before the next round
+  }
+  CHECK(failed > 100); // each copy allocates every node and every leaf's vector
+  CHECK(order_of(other) == tree_order);
+}
 
 TEST(editions_agree_on_disks) { run_cases<Disk>(1); }
 TEST(editions_agree_on_triangles) { run_cases<Triangle>(2); }
