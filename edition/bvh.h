@@ -265,6 +265,7 @@ private:
 
   void build_subtree(Node *node, std::vector<T> shapes, Cut how);
   static void thirds(std::size_t m, std::size_t cut[4]);
+  static void sort_by_centre(std::vector<T> &shapes, bool by_x);
   static void cut_by_course_rule(std::vector<T> &shapes, const BoundingBox &box, std::size_t cut[4]);
   static double area_of(const std::vector<T> &shapes, std::size_t begin, std::size_t end);
   static std::size_t best_cut(const std::vector<T> &shapes, std::size_t begin, std::size_t end, double &cost);
@@ -543,14 +544,20 @@ template <class T> void BVH<T>::thirds(std::size_t m, std::size_t cut[4]) {
   cut[3] = m;
 }
 
+/// Sorts shapes by their centre's x (or y), keeping the order of shapes
+/// whose coordinates are equal (a stable sort). O(m log m).
+template <class T> void BVH<T>::sort_by_centre(std::vector<T> &shapes, bool by_x) {
+  std::stable_sort(shapes.begin(), shapes.end(), [by_x](const T &a, const T &b) {
+    return by_x ? a.getCenter().x < b.getCenter().x : a.getCenter().y < b.getCenter().y;
+  });
+}
+
 /// The course's rule (see THE COURSE'S BUILD RULE): a stable sort of the
 /// shapes by centre on the longer side of `box` (x on a tie), then thirds.
 /// O(m log m).
 template <class T> void BVH<T>::cut_by_course_rule(std::vector<T> &shapes, const BoundingBox &box, std::size_t cut[4]) {
   const bool by_x = box.dx() >= box.dy();
-  std::stable_sort(shapes.begin(), shapes.end(), [by_x](const T &a, const T &b) {
-    return by_x ? a.getCenter().x < b.getCenter().x : a.getCenter().y < b.getCenter().y;
-  });
+  sort_by_centre(shapes, by_x);
   thirds(shapes.size(), cut);
 }
 
@@ -593,9 +600,7 @@ std::size_t BVH<T>::best_cut(const std::vector<T> &shapes, std::size_t begin, st
 /// (stably, as the course's rule does): the best cut in two, then the best
 /// cut of whichever side gives the lower total. Returns that total. O(m log m).
 template <class T> double BVH<T>::cut_by_sah_on(std::vector<T> &shapes, bool by_x, std::size_t cut[4]) {
-  std::stable_sort(shapes.begin(), shapes.end(), [by_x](const T &a, const T &b) {
-    return by_x ? a.getCenter().x < b.getCenter().x : a.getCenter().y < b.getCenter().y;
-  });
+  sort_by_centre(shapes, by_x);
   const std::size_t m = shapes.size();
   double total, left_cost = std::numeric_limits<double>::infinity(), right_cost = left_cost;
   const std::size_t i = best_cut(shapes, 0, m, total);
