@@ -30,7 +30,7 @@ if [ -n "$BVH" ]; then
   [ -f "$BVH" ] || { echo "course_framework.sh: no such file: $BVH" >&2; exit 2; }
   BVH=$(cd "$(dirname "$BVH")" && pwd)/$(basename "$BVH")
 fi
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/.." || exit 2
 BVH=${BVH:-$PWD/bvh.h}
 EXTRAS=${EXTRAS:-auto}
 COURSE_DATA=${COURSE_DATA:-../shared/course}
