@@ -16,7 +16,7 @@ COURSE_HEADERS := bvh.h shapes.h intersect.h svg.h
 HEADERS := $(LIB_HEADERS)
 # Parallel jobs of make test's build (and of tests/run.sh's layers).
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
-UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions lazy_handles
+UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions lazy_handles editions
 # make test builds six of the suites as one program, build/test_units
 # (tests/units.cpp: each suite in a namespace of its own, run as
 # build/test_units SUITE), so that the trees they share compile once per
@@ -30,7 +30,7 @@ UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions la
 # check does.)
 UNITY := bvh dynamic moving intersect threads parse
 LANES := disjoint lazy_handles
-SOLO := names exceptions
+SOLO := names exceptions editions
 TEST_HEADERS := tests/check.h tests/scenes.h tests/lanes_probe.h
 UNITY_SOURCES := tests/units.cpp $(UNITY:%=tests/test_%.cpp) $(TEST_HEADERS) $(HEADERS)
 LANES_SOURCES := tests/lanes.cpp $(LANES:%=tests/test_%.cpp) $(TEST_HEADERS) $(HEADERS)
@@ -65,7 +65,7 @@ TSAN_TESTS := $(BUILD)/test_threads_tsan $(BUILD)/test_lanes_tsan
 # examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
-.PHONY: all check check-build test test-build test-build-longest test-build-gcc test-build-san demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions bench-disjoint bench-widths
+.PHONY: all check check-build course-check test test-build test-build-longest test-build-gcc test-build-san demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions bench-disjoint bench-widths
 
 all: bvh.out
 
@@ -87,10 +87,15 @@ $(BUILD)/test_%_san: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 $(BUILD)/test_exceptions: tests/test_exceptions.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -std=c++20 -Iinclude -Itests $< -o $@
 
-# The two editions against each other (the top-level bvh.h, "bvh.h" through
-# -I., and the engine, <bvh/bvh.h> through -Iinclude).
-$(BUILD)/test_editions: tests/test_editions.cpp tests/check.h $(HEADERS) $(COURSE_HEADERS) | $(BUILD)
+# The two editions against each other: the course's (the top-level bvh.h,
+# "bvh.h" through -I.) and the engine (<bvh/bvh.h> through -Iinclude).
+EDITIONS_SOURCES := tests/test_editions.cpp tests/check.h $(HEADERS) $(COURSE_HEADERS)
+$(BUILD)/test_editions: $(EDITIONS_SOURCES) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -I. -Iinclude -Itests $< -o $@
+$(BUILD)/test_editions_san: $(EDITIONS_SOURCES) | $(BUILD)
+	$(SAN_CXX) $(SANITIZE) -I. -Iinclude -Itests $< -o $@
+$(BUILD)/check/test_editions: $(EDITIONS_SOURCES) | $(BUILD)/check
+	$(CXX) $(CHECK_CXXFLAGS) -I. -Iinclude -Itests $< -o $@
 
 $(BUILD)/test_units: $(UNITY_SOURCES) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -Iinclude -Itests $< -o $@
@@ -155,7 +160,7 @@ $(BUILD)/check:
 LONGEST := bvh.out $(BUILD)/test_units $(BUILD)/test_lanes $(BUILD)/test_exceptions
 test-build-longest: $(LONGEST)
 test-build-san: $(SAN_TESTS)
-test-build-gcc: $(TESTS) $(BUILD)/test_editions $(TSAN_TESTS) bvh.out $(ASSERT_TESTS) $(EXAMPLES)
+test-build-gcc: $(TESTS) $(TSAN_TESTS) bvh.out $(ASSERT_TESTS) $(EXAMPLES)
 test-build: test-build-longest $(BUILD)/bvh_san.out test-build-san test-build-gcc $(BUILD)/fuzz_parser_O0
 
 # Every test; ends with "N passed, M failed" and fails when M > 0. The
@@ -184,6 +189,17 @@ $(BUILD)/check/test_%.out: $(BUILD)/check/test_%
 check-build: bvh.out $(BUILD)/check/test_dynamic.out $(BUILD)/check/test_bvh.out $(CHECK_TESTS:%=%.out)
 check: | $(BUILD)
 	+@MAKE="$(MAKE)" JOBS="$(JOBS)" CXX="$(CXX)" COURSE_DATA="$(COURSE_DATA)" BUILD="$(BUILD)" bash tests/run.sh --quick
+
+# make course-check [BVH=path/to/bvh.h]: that bvh.h (default: the project's)
+# alone in the course's framework, as the homework server builds it (the
+# stand-ins in tests/course_framework/): the one-command check of a
+# submission (tests/course_framework.sh: the build without warnings, the
+# goldens, discard-overlap against a scan with the framework's intersect,
+# the instructor-style tests of iterators and copies, the extra credit when
+# it compiles, valgrind). Builds all it needs itself.
+BVH ?= bvh.h
+course-check:
+	@COURSE_DATA="$(COURSE_DATA)" CXX="$(CXX)" bash tests/course_framework.sh "$(BVH)"
 
 # libFuzzer on the scene parser, the tree built from what it accepts and the
 # command-line parser (tests/fuzz_parser.cpp; needs clang++ and its libFuzzer
