@@ -65,6 +65,7 @@ TSAN_TESTS := $(BUILD)/test_threads_tsan $(BUILD)/test_lanes_tsan
 # examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
+.PHONY: bench-edition
 .PHONY: all check check-build course-check test test-build test-build-longest test-build-gcc test-build-san demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions bench-disjoint bench-widths
 
 all: bvh.out
@@ -306,6 +307,16 @@ bench-moving: $(BUILD)/bench_moving
 	echo "$(BUILD)/bench_moving $(BENCH_ARGS) | tee $$out"; \
 	{ $(BUILD)/bench_moving $(BENCH_ARGS); echo $$? > $(BUILD)/bench_moving.rc; } | tee $$out; \
 	exit $$(cat $(BUILD)/bench_moving.rc)
+
+# ---- make bench-edition (bench/edition.cpp): the course's edition (bvh.h) beside the
+# engine at width 3 on the course's questions: discard-overlap sampling of 1k-1M random
+# disks against a scan, and the build rules' SAH cost on the course's scenes
+# (COURSE_DATA). Table to stdout and bench/results_edition.txt; RUNS=n (default 3).
+$(BUILD)/bench_edition: bench/edition.cpp bench/random_disks.h $(HEADERS) $(COURSE_HEADERS) | $(BUILD)
+	$(CXX) $(BENCH_CXXFLAGS) -pedantic bench/edition.cpp -o $@
+
+bench-edition: $(BUILD)/bench_edition
+	COURSE_DATA="$(COURSE_DATA)" $(BUILD)/bench_edition $(if $(RUNS),--runs $(RUNS)) | tee bench/results_edition.txt
 
 # ---- make bench-instructions (bench/instructions.sh): callgrind instruction counts of
 # W1, W2, W3 (bench.cpp, ours) and all pairs and erase churn (bench/instructions.cpp),

@@ -568,7 +568,7 @@ inline std::string random_line(const std::string &kind, Random &rng, double lo, 
 
 /// Adds `line` to the scene unless `no_overlap` and it touches a shape
 /// already placed. The check uses the values the loader will read back.
-template <class T> bool place(const std::string &line, bool no_overlap, BVH<T> &placed) {
+template <class T> bool place(const std::string &line, bool no_overlap, bvh::BVH<T> &placed) {
   if (!no_overlap) return true;
   LineParser in(line.data(), line.data() + line.size() - 1);
   T shape;
@@ -594,7 +594,7 @@ template <class T, class Progress = NoGenerateProgress>
 long generate_scene(const std::string &kind, long count, std::uint64_t seed, double lo, double hi, bool overlap,
                     std::string &text, Progress progress = Progress()) {
   Random rng(seed);
-  BVH<T> placed(8, BVH<T>::unlimited);
+  bvh::BVH<T> placed(8, bvh::BVH<T>::unlimited);
   long made = 0;
   // Non-overlapping scenes fill up; give up rather than loop forever.
   const long max_tries = overlap ? count : 1000 + 200 * count;

@@ -1,7 +1,7 @@
 // svg.h — draws a BVH and its shapes as a 1000 x 1000 SVG picture, saved as
 // an .html file (as the course does) that any browser opens.
 //
-//   BVH<Triangle> tree(4, 2);
+//   bvh::BVH<bvh::Triangle> tree(4, 2);
 //   tree.construct(triangles);
 //   std::string error;
 //   if (!write_svg("out.html", tree, /*visualize=*/true, &error))
@@ -72,7 +72,7 @@ inline void render_end(std::ostream &ostr) {
 /// Returns false and sets `*error` when the file cannot be written; the
 /// destination is then left as it was.
 template <class T, class Tr, int W>
-bool write_svg(const std::string &path, BVH<T, Tr, W> &tree, bool visualize, std::string *error = nullptr) {
+bool write_svg(const std::string &path, bvh::BVH<T, Tr, W> &tree, bool visualize, std::string *error = nullptr) {
   const std::string temp = path + ".partial";
   {
     std::ofstream ostr(temp, std::ios::binary | std::ios::trunc);
