@@ -92,9 +92,9 @@
 #define BVH_HUGE_PAGES 0
 #endif
 
-// The only project header: with the course's shapes.h (the homework
-// server's) or this project's (which brings in the exact intersect.h and
-// distance.h), everything below compiles.
+// The library's own headers: its version, and its shapes (which bring in
+// the exact intersect.h and distance.h).
+#include "version.h"
 #include "shapes.h"
 
 // ===========================================================================
