@@ -8,10 +8,15 @@ SANITIZE ?= -std=c++17 -O0 -g1 -Wall -Wextra -pedantic -fsanitize=address,undefi
 COURSE_DATA ?= ../shared/course
 BUILD ?= build
 
-HEADERS := bvh.h shapes.h intersect.h distance.h svg.h scene.h
+# The library (include/bvh/, every name in namespace bvh) and the course's
+# edition at the top (bvh.h, with shapes.h, intersect.h and svg.h giving
+# the course's unqualified names).
+LIB_HEADERS := $(wildcard include/bvh/*.h)
+COURSE_HEADERS := bvh.h shapes.h intersect.h svg.h
+HEADERS := $(LIB_HEADERS)
 # Parallel jobs of make test's build (and of tests/run.sh's layers).
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
-UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions lazy_handles
+UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions lazy_handles editions
 # make test builds six of the suites as one program, build/test_units
 # (tests/units.cpp: each suite in a namespace of its own, run as
 # build/test_units SUITE), so that the trees they share compile once per
@@ -25,7 +30,7 @@ UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions la
 # check does.)
 UNITY := bvh dynamic moving intersect threads parse
 LANES := disjoint lazy_handles
-SOLO := names exceptions
+SOLO := names exceptions editions
 TEST_HEADERS := tests/check.h tests/scenes.h tests/lanes_probe.h
 UNITY_SOURCES := tests/units.cpp $(UNITY:%=tests/test_%.cpp) $(TEST_HEADERS) $(HEADERS)
 LANES_SOURCES := tests/lanes.cpp $(LANES:%=tests/test_%.cpp) $(TEST_HEADERS) $(HEADERS)
@@ -60,12 +65,13 @@ TSAN_TESTS := $(BUILD)/test_threads_tsan $(BUILD)/test_lanes_tsan
 # examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
-.PHONY: all check check-build test test-build test-build-longest test-build-gcc test-build-san demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions bench-disjoint bench-widths
+.PHONY: bench-edition
+.PHONY: all check check-build course-check test test-build test-build-longest test-build-gcc test-build-san demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions bench-disjoint bench-widths
 
 all: bvh.out
 
 bvh.out: main.cpp $(HEADERS)
-	$(CXX) $(CXXFLAGS) main.cpp -o $@
+	$(CXX) $(CXXFLAGS) -Iinclude main.cpp -o $@
 
 # The unit suites at make check's -Og (UNIT_CXXFLAGS): they test behaviour
 # at their full rounds in a few seconds either way, and -Og compiles in about
@@ -74,31 +80,41 @@ bvh.out: main.cpp $(HEADERS)
 # course-framework and browser layers check.
 UNIT_CXXFLAGS ?= $(CHECK_CXXFLAGS)
 $(BUILD)/test_%: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
-	$(CXX) $(UNIT_CXXFLAGS) -I. -Itests $< -o $@
+	$(CXX) $(UNIT_CXXFLAGS) -Iinclude -Itests $< -o $@
 
 $(BUILD)/test_%_san: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
-	$(SAN_CXX) $(SANITIZE) -I. -Itests $< -o $@
+	$(SAN_CXX) $(SANITIZE) -Iinclude -Itests $< -o $@
 
 $(BUILD)/test_exceptions: tests/test_exceptions.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
-	$(CXX) $(UNIT_CXXFLAGS) -std=c++20 -I. -Itests $< -o $@
+	$(CXX) $(UNIT_CXXFLAGS) -std=c++20 -Iinclude -Itests $< -o $@
+
+# The two editions against each other: the course's (the top-level bvh.h,
+# "bvh.h" through -I.) and the engine (<bvh/bvh.h> through -Iinclude).
+EDITIONS_SOURCES := tests/test_editions.cpp tests/check.h $(HEADERS) $(COURSE_HEADERS)
+$(BUILD)/test_editions: $(EDITIONS_SOURCES) | $(BUILD)
+	$(CXX) $(UNIT_CXXFLAGS) -I. -Iinclude -Itests $< -o $@
+$(BUILD)/test_editions_san: $(EDITIONS_SOURCES) | $(BUILD)
+	$(SAN_CXX) $(SANITIZE) -I. -Iinclude -Itests $< -o $@
+$(BUILD)/check/test_editions: $(EDITIONS_SOURCES) | $(BUILD)/check
+	$(CXX) $(CHECK_CXXFLAGS) -I. -Iinclude -Itests $< -o $@
 
 $(BUILD)/test_units: $(UNITY_SOURCES) | $(BUILD)
-	$(CXX) $(UNIT_CXXFLAGS) -I. -Itests $< -o $@
+	$(CXX) $(UNIT_CXXFLAGS) -Iinclude -Itests $< -o $@
 
 $(BUILD)/test_units_san: $(UNITY_SOURCES) | $(BUILD)
-	$(SAN_CXX) $(SANITIZE) $(UNITS_SAN_FLAGS) -I. -Itests $< -o $@
+	$(SAN_CXX) $(SANITIZE) $(UNITS_SAN_FLAGS) -Iinclude -Itests $< -o $@
 
 $(BUILD)/test_lanes: $(LANES_SOURCES) | $(BUILD)
-	$(CXX) $(UNIT_CXXFLAGS) -I. -Itests $< -o $@
+	$(CXX) $(UNIT_CXXFLAGS) -Iinclude -Itests $< -o $@
 
 $(BUILD)/test_lanes_san: $(LANES_SOURCES) | $(BUILD)
-	$(SAN_CXX) $(SANITIZE) -I. -Itests $< -o $@
+	$(SAN_CXX) $(SANITIZE) -Iinclude -Itests $< -o $@
 
 # The sanitized CLI runs the command-line cases, all at the course's width
 # 3: -DBVH_CLI_COURSE_WIDTH_ONLY compiles that width alone (half the
 # compile; --width 2, 4 or 8 is then a usage error).
 $(BUILD)/bvh_san.out: main.cpp $(HEADERS) | $(BUILD)
-	$(SAN_CXX) $(SANITIZE) -DBVH_CLI_COURSE_WIDTH_ONLY main.cpp -o $@
+	$(SAN_CXX) $(SANITIZE) -DBVH_CLI_COURSE_WIDTH_ONLY -Iinclude main.cpp -o $@
 
 # test_asserts and the examples at -O0: they run in a second or two (each
 # assert case in milliseconds) either way, and -O0 compiles them at least
@@ -108,27 +124,27 @@ $(BUILD)/bvh_san.out: main.cpp $(HEADERS) | $(BUILD)
 EXAMPLE_CXXFLAGS ?= -std=c++17 -O0 -Wall -Wextra -pedantic
 EXAMPLE_CXX ?= $(CXX)
 $(BUILD)/test_asserts: tests/test_asserts.cpp $(HEADERS) | $(BUILD)
-	$(EXAMPLE_CXX) $(EXAMPLE_CXXFLAGS) -I. $< -o $@
+	$(EXAMPLE_CXX) $(EXAMPLE_CXXFLAGS) -Iinclude $< -o $@
 
 $(BUILD)/test_asserts_ndebug: tests/test_asserts.cpp $(HEADERS) | $(BUILD)
-	$(EXAMPLE_CXX) $(EXAMPLE_CXXFLAGS) -DNDEBUG -I. $< -o $@
+	$(EXAMPLE_CXX) $(EXAMPLE_CXXFLAGS) -DNDEBUG -Iinclude $< -o $@
 
 $(BUILD)/test_asserts_throwing: tests/test_asserts.cpp $(HEADERS) | $(BUILD)
-	$(EXAMPLE_CXX) $(EXAMPLE_CXXFLAGS) -DBVH_TEST_THROWING_ASSERT -I. $< -o $@
+	$(EXAMPLE_CXX) $(EXAMPLE_CXXFLAGS) -DBVH_TEST_THROWING_ASSERT -Iinclude $< -o $@
 
 # (TSAN_CXX: tests/run.sh sets clang++ when it is installed, which compiles
 # and runs these in about 60% of g++'s time.)
 TSAN_CXX ?= $(CXX)
 TSAN_FLAGS := -std=c++17 -O0 -g1 -Wall -Wextra -pedantic -fsanitize=thread
 $(BUILD)/test_%_tsan: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
-	$(TSAN_CXX) $(TSAN_FLAGS) -I. -Itests $< -o $@
+	$(TSAN_CXX) $(TSAN_FLAGS) -Iinclude -Itests $< -o $@
 # (insert_disjoint's lanes under TSan from two threads on every tree: the
 # override BVH_DISJOINT_LANES_THREADS, which no other build sets)
 $(BUILD)/test_lanes_tsan: $(LANES_SOURCES) | $(BUILD)
-	$(TSAN_CXX) $(TSAN_FLAGS) -DBVH_DISJOINT_LANES_THREADS=2 -I. -Itests $< -o $@
+	$(TSAN_CXX) $(TSAN_FLAGS) -DBVH_DISJOINT_LANES_THREADS=2 -Iinclude -Itests $< -o $@
 
 $(BUILD)/example_%: examples/%.cpp $(HEADERS) | $(BUILD)
-	$(EXAMPLE_CXX) $(EXAMPLE_CXXFLAGS) -I. $< -o $@
+	$(EXAMPLE_CXX) $(EXAMPLE_CXXFLAGS) -Iinclude $< -o $@
 
 $(BUILD):
 	mkdir -p $(BUILD)
@@ -167,13 +183,24 @@ CHECK_CXXFLAGS ?= -std=c++17 -Og -Wall -Wextra -pedantic
 CHECK_SCALE ?= 0.5
 CHECK_TESTS := $(UNITS:%=$(BUILD)/check/test_%)
 $(BUILD)/check/test_%: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)/check
-	$(CXX) $(CHECK_CXXFLAGS) -I. -Itests $< -o $@
+	$(CXX) $(CHECK_CXXFLAGS) -Iinclude -Itests $< -o $@
 $(BUILD)/check/test_%.out: $(BUILD)/check/test_%
 	@BVH_TEST_SCALE=$(CHECK_SCALE) $< >$@.tmp 2>&1; echo "exit status $$?" >>$@.tmp; mv $@.tmp $@
 # (Longest compiles first.)
 check-build: bvh.out $(BUILD)/check/test_dynamic.out $(BUILD)/check/test_bvh.out $(CHECK_TESTS:%=%.out)
 check: | $(BUILD)
 	+@MAKE="$(MAKE)" JOBS="$(JOBS)" CXX="$(CXX)" COURSE_DATA="$(COURSE_DATA)" BUILD="$(BUILD)" bash tests/run.sh --quick
+
+# make course-check [BVH=path/to/bvh.h]: that bvh.h (default: the project's)
+# alone in the course's framework, as the homework server builds it (the
+# stand-ins in tests/course_framework/): the one-command check of a
+# submission (tests/course_framework.sh: the build without warnings, the
+# goldens, discard-overlap against a scan with the framework's intersect,
+# the instructor-style tests of iterators and copies, the extra credit when
+# it compiles, valgrind). Builds all it needs itself.
+BVH ?= bvh.h
+course-check:
+	@COURSE_DATA="$(COURSE_DATA)" CXX="$(CXX)" bash tests/course_framework.sh "$(BVH)"
 
 # libFuzzer on the scene parser, the tree built from what it accepts and the
 # command-line parser (tests/fuzz_parser.cpp; needs clang++ and its libFuzzer
@@ -185,7 +212,7 @@ check: | $(BUILD)
 FUZZ_SECONDS ?= 60
 FUZZ_CXX ?= clang++
 FUZZ_FLAGS := -std=c++17 -g1 -Wall -Wextra -pedantic -fsanitize=fuzzer,address,undefined \
-  -fno-sanitize-recover=all -DBVH_NO_MAIN -I.
+  -fno-sanitize-recover=all -DBVH_NO_MAIN -Iinclude
 $(BUILD)/fuzz_parser: tests/fuzz_parser.cpp main.cpp $(HEADERS) | $(BUILD)
 	$(FUZZ_CXX) -O1 $(FUZZ_FLAGS) $< main.cpp -o $@
 $(BUILD)/fuzz_parser_O0: tests/fuzz_parser.cpp main.cpp $(HEADERS) | $(BUILD)
@@ -212,7 +239,7 @@ clean:
 # libbox2d-dev), else skipped with a notice. make bench RUNS=n; make bench QUICK=1 (a
 # reduced set in under a minute, results in build/bench-quick/).
 # Every method is compiled with the same flags.
-BENCH_CXXFLAGS = -std=c++17 -O2 -DNDEBUG -Wall -Wextra
+BENCH_CXXFLAGS = -std=c++17 -O2 -DNDEBUG -Wall -Wextra -Iinclude
 BENCH_ARGS = $(if $(RUNS),--runs $(RUNS)) $(if $(filter-out 0,$(QUICK)),--quick)
 .PHONY: bench-peers
 
@@ -231,8 +258,8 @@ bench-peers:
 
 # The results name the bvh.h they measured (its sha1, and whether HEAD has it).
 $(BUILD)/bench: bench/bench.cpp bench/peers.h $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
-	@id=$$(sha1sum bvh.h | cut -c1-12); head=$$(git rev-parse --short HEAD 2>/dev/null || echo none); \
-	if [ "$$(git show HEAD:bvh.h 2>/dev/null | sha1sum | cut -c1-12)" = "$$id" ]; then st="as in HEAD $$head"; \
+	@id=$$(sha1sum include/bvh/bvh.h | cut -c1-12); head=$$(git rev-parse --short HEAD 2>/dev/null || echo none); \
+	if [ "$$(git show HEAD:include/bvh/bvh.h 2>/dev/null | sha1sum | cut -c1-12)" = "$$id" ]; then st="as in HEAD $$head"; \
 	else st="modified since HEAD $$head"; fi; info="bvh.h sha1 $$id, $$st"; \
 	if [ "$$(cat $(BUILD)/bench-peers)" = box2d ]; then lib=-lbox2d; def=-DBENCH_HAVE_BOX2D_LIB; else lib=; def=; fi; \
 	echo "$(CXX) $(BENCH_CXXFLAGS) $$def bench/bench.cpp -o $@ $$lib   ($$info)"; \
@@ -268,8 +295,8 @@ bench-builders: $(BUILD)/bench_builders
 # into $(BUILD)/results_moving.txt.
 # Exits 1 when the methods disagree or validate() fails.
 $(BUILD)/bench_moving: bench/moving.cpp bench/peers.h $(HEADERS) $(BUILD)/bench-peers | $(BUILD)
-	@id=$$(sha1sum bvh.h | cut -c1-12); head=$$(git rev-parse --short HEAD 2>/dev/null || echo none); \
-	if [ "$$(git show HEAD:bvh.h 2>/dev/null | sha1sum | cut -c1-12)" = "$$id" ]; then st="as in HEAD $$head"; \
+	@id=$$(sha1sum include/bvh/bvh.h | cut -c1-12); head=$$(git rev-parse --short HEAD 2>/dev/null || echo none); \
+	if [ "$$(git show HEAD:include/bvh/bvh.h 2>/dev/null | sha1sum | cut -c1-12)" = "$$id" ]; then st="as in HEAD $$head"; \
 	else st="modified since HEAD $$head"; fi; info="bvh.h sha1 $$id, $$st"; \
 	if [ "$$(cat $(BUILD)/bench-peers)" = box2d ]; then lib=-lbox2d; def=-DBENCH_HAVE_BOX2D_LIB; else lib=; def=; fi; \
 	echo "$(CXX) $(BENCH_CXXFLAGS) -pedantic $$def bench/moving.cpp -o $@ $$lib   ($$info)"; \
@@ -280,6 +307,16 @@ bench-moving: $(BUILD)/bench_moving
 	echo "$(BUILD)/bench_moving $(BENCH_ARGS) | tee $$out"; \
 	{ $(BUILD)/bench_moving $(BENCH_ARGS); echo $$? > $(BUILD)/bench_moving.rc; } | tee $$out; \
 	exit $$(cat $(BUILD)/bench_moving.rc)
+
+# ---- make bench-edition (bench/edition.cpp): the course's edition (bvh.h) beside the
+# engine at width 3 on the course's questions: discard-overlap sampling of 1k-1M random
+# disks against a scan, and the build rules' SAH cost on the course's scenes
+# (COURSE_DATA). Table to stdout and bench/results_edition.txt; RUNS=n (default 3).
+$(BUILD)/bench_edition: bench/edition.cpp bench/random_disks.h $(HEADERS) $(COURSE_HEADERS) | $(BUILD)
+	$(CXX) $(BENCH_CXXFLAGS) -pedantic bench/edition.cpp -o $@
+
+bench-edition: $(BUILD)/bench_edition
+	COURSE_DATA="$(COURSE_DATA)" $(BUILD)/bench_edition $(if $(RUNS),--runs $(RUNS)) | tee bench/results_edition.txt
 
 # ---- make bench-instructions (bench/instructions.sh): callgrind instruction counts of
 # W1, W2, W3 (bench.cpp, ours) and all pairs and erase churn (bench/instructions.cpp),
@@ -313,7 +350,7 @@ $(eval $(call bench_moving_wide,bench_moving_w8k32,32))
 
 WIDTH_METHODS := ours,ours-w4,ours-w8,ours-w8k8,ours-w8k16,ours-w8k32,ours-w8k32-s1,ours-w8k32-all,boost-quad16,boost-rstar16,grid
 bench-widths: bvh.out $(BUILD)/bench $(BUILD)/bench_moving $(BUILD)/bench_moving_w8 $(BUILD)/bench_moving_w8k32
-	@out=bench/results_widths.txt; { echo "make bench-widths at $$(git rev-parse --short HEAD 2>/dev/null) (bvh.h sha1 $$(sha1sum bvh.h | cut -c1-12)), $$(date -u +%Y-%m-%dT%H:%MZ); uptime: $$(uptime)"; \
+	@out=bench/results_widths.txt; { echo "make bench-widths at $$(git rev-parse --short HEAD 2>/dev/null) (bvh.h sha1 $$(sha1sum include/bvh/bvh.h | cut -c1-12)), $$(date -u +%Y-%m-%dT%H:%MZ); uptime: $$(uptime)"; \
 	for w in W1 W2 W3; do echo; echo "### $(BUILD)/bench --only $$w --method $(WIDTH_METHODS) --runs $(or $(RUNS),5)"; \
 	  $(BUILD)/bench --only $$w --method $(WIDTH_METHODS) --runs $(or $(RUNS),5) 2>/dev/null; done; \
 	for b in bench_moving bench_moving_w8 bench_moving_w8k32; do echo; echo "### $(BUILD)/$$b --runs 1"; $(BUILD)/$$b --runs 1; done; } | tee $$out

@@ -44,10 +44,11 @@
 #include <utility>
 #include <vector>
 
-#include "bvh.h"
-#include "scene.h"
-#include "shapes.h"
-#include "svg.h"
+#include <bvh/bvh.h>
+#include <bvh/scene.h>
+#include <bvh/shapes.h>
+#include <bvh/svg.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 namespace {
 

@@ -63,10 +63,11 @@ inline void add(int step, double seconds) {
 #define BVH_DISJOINT_PROFILE bench_profile::add
 #define BVH_DISJOINT_PROFILE_ON bench_profile::enabled
 
-#include "../bvh.h"
-#include "../scene.h"
-#include "../shapes.h"
-#include "../svg.h"
+#include <bvh/bvh.h>
+#include <bvh/scene.h>
+#include <bvh/shapes.h>
+#include <bvh/svg.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 #include <sys/resource.h>
 #include <sys/types.h>

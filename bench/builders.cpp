@@ -15,10 +15,11 @@
 // compare the probe time. Writes the tables to stdout and a bar chart of
 // the first table's SAH costs, relative to the course bulk build, to the
 // SVG file named by its argument.
-#include "../bvh.h"
-#include "../scene.h"
-#include "../shapes.h"
-#include "../svg.h"
+#include <bvh/bvh.h>
+#include <bvh/scene.h>
+#include <bvh/shapes.h>
+#include <bvh/svg.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 #include <chrono>
 #include <fstream>

@@ -25,7 +25,8 @@
 #include <string>
 #include <vector>
 
-#include "../bvh.h"
+#include <bvh/bvh.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include "random_disks.h"
 
 #if !defined(BENCH_NO_BOOST) && __has_include(<boost/geometry.hpp>)

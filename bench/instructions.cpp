@@ -14,7 +14,8 @@
 #include <string>
 #include <vector>
 
-#include "../bvh.h"
+#include <bvh/bvh.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include "peers.h"
 #include "random_disks.h"
 

@@ -87,10 +87,11 @@
 // otherwise the run prints "skipped NAME: apt-get install PACKAGE". To see
 // that path with the peers installed, add -DBENCH_NO_BOOST / -DBENCH_NO_BOX2D.
 
-#include "../bvh.h"
-#include "../distance.h"
-#include "../intersect.h"
-#include "../shapes.h"
+#include <bvh/bvh.h>
+#include <bvh/distance.h>
+#include <bvh/intersect.h>
+#include <bvh/shapes.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 #include <algorithm>
 #include <chrono>

@@ -13,7 +13,8 @@
 #include <boost/geometry.hpp>
 #include <boost/geometry/index/rtree.hpp>
 #include <boost/iterator/function_output_iterator.hpp>
-#include "../shapes.h"
+#include <bvh/shapes.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include <cstdint>
 #include <utility>
 // The peers' value type: a box and the shape's index.

@@ -8,7 +8,8 @@
 #include <random>
 #include <vector>
 
-#include "../shapes.h"
+#include <bvh/shapes.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 inline std::vector<Disk> random_disks(std::size_t n, double rlo, double rhi, std::uint64_t seed) {
   std::mt19937_64 rng(seed);

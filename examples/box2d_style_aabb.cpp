@@ -1,12 +1,12 @@
 // examples/box2d_style_aabb.cpp — a game's own types, untouched: bodies
 // with a Box2D-style AABB (lowerBound, upperBound), indexed by specializing
-// bvh::box_traits and bvh::shape_traits, and queried with an AABB. Built
-// with BVH_NO_GLOBAL_NAMES, beside the game's own global Vec2 and Color.
+// bvh::box_traits and bvh::shape_traits, and queried with an AABB, beside
+// the game's own global Vec2 and Color (the library declares nothing at
+// global scope).
 // Checked against a brute-force scan.
 //
-//   g++ -std=c++17 -O2 -I. examples/box2d_style_aabb.cpp -o box2d_style_aabb && ./box2d_style_aabb
-#define BVH_NO_GLOBAL_NAMES
-#include "bvh.h"
+//   g++ -std=c++17 -O2 -Iinclude examples/box2d_style_aabb.cpp -o box2d_style_aabb && ./box2d_style_aabb
+#include <bvh/bvh.h>
 
 #include <cstdio>
 #include <random>

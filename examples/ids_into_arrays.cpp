@@ -3,8 +3,9 @@
 // adaptor, kept by the tree, reads them. Poisson-disk sampling by id,
 // a box query, and moves by handle, checked against brute-force scans.
 //
-//   g++ -std=c++17 -O2 -I. examples/ids_into_arrays.cpp -o ids_into_arrays && ./ids_into_arrays
-#include "bvh.h"
+//   g++ -std=c++17 -O2 -Iinclude examples/ids_into_arrays.cpp -o ids_into_arrays && ./ids_into_arrays
+#include <bvh/bvh.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 #include <cstdint>
 #include <cstdio>

@@ -3,8 +3,9 @@
 // Poisson-disk sampling of random balls with the tree, checked against a
 // brute-force scan; then every ball touching a probe, checked the same way.
 //
-//   g++ -std=c++17 -O2 -I. examples/own_shape_type.cpp -o own_shape_type && ./own_shape_type
-#include "bvh.h"
+//   g++ -std=c++17 -O2 -Iinclude examples/own_shape_type.cpp -o own_shape_type && ./own_shape_type
+#include <bvh/bvh.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 #include <algorithm>
 #include <cstdio>

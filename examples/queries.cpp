@@ -9,9 +9,10 @@
 #include <sstream>
 #include <vector>
 
-#include "bvh.h"
-#include "distance.h" // distance(point, shape) and ray_hit(), for the scans below
-#include "scene.h"    // bvh_scene::Random: the same numbers on every compiler
+#include <bvh/bvh.h>
+#include <bvh/distance.h> // distance(point, shape) and ray_hit(), for the scans below
+#include <bvh/scene.h>    // bvh_scene::Random: the same numbers on every compiler
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 int main() {
   bvh_scene::Random rng(3);

@@ -11,8 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "bvh.h"
-#include "scene.h"
+#include <bvh/bvh.h>
+#include <bvh/scene.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 int main() {
   // [readme:read]

@@ -8,8 +8,9 @@
 #include <iostream>
 #include <vector>
 
-#include "bvh.h"
-#include "scene.h" // bvh_scene::Random: the same numbers on every compiler
+#include <bvh/bvh.h>
+#include <bvh/scene.h> // bvh_scene::Random: the same numbers on every compiler
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 int main() {
   bvh_scene::Random rng(11);

@@ -44,7 +44,8 @@ if step cmake_configure_build_install_bvh bvh bash -c "
   cmake --build '$dir/bvh-build' -j $jobs && cmake --install '$dir/bvh-build'"; then
   missing=
   for f in include/bvh/bvh.h include/bvh/shapes.h include/bvh/intersect.h include/bvh/distance.h \
-    include/bvh/svg.h include/bvh/scene.h bin/bvh.out share/cmake/bvh/bvhConfig.cmake \
+    include/bvh/svg.h include/bvh/scene.h include/bvh/version.h share/pkgconfig/bvh.pc bin/bvh.out \
+    share/cmake/bvh/bvhConfig.cmake \
     share/cmake/bvh/bvhConfigVersion.cmake share/cmake/bvh/bvhTargets.cmake; do
     [ -f "$prefix/$f" ] || missing="$missing $f"
   done
@@ -79,6 +80,22 @@ if step cmake_configure_build_install_bvh bvh bash -c "
     fi
     step cmake_consumer_find_package_runs consumer-find-run "$dir/consumer-find/consumer" inputs/gen_overlap_1000.disks
   fi
+fi
+
+# 2b. pkg-config against the install: the consumer built with its flags alone.
+if command -v pkg-config >/dev/null 2>&1; then
+  pc_dir=$prefix/share/pkgconfig
+  if [ -f "$pc_dir/bvh.pc" ] && flags=$(PKG_CONFIG_PATH=$pc_dir pkg-config --cflags --libs bvh) &&
+    version=$(PKG_CONFIG_PATH=$pc_dir pkg-config --modversion bvh) &&
+    ${CXX:-g++} -std=c++17 -O0 tests/consumer/consumer.cpp -DBVH_PACKAGE_VERSION="\"$version\"" $flags \
+      -o "$dir/consumer-pc" >"$dir/consumer-pc.log" 2>&1 &&
+    "$dir/consumer-pc" inputs/gen_overlap_1000.disks >>"$dir/consumer-pc.log" 2>&1; then
+    echo "ok cmake_installed_pkg_config_builds_the_consumer"
+  else
+    echo "FAIL cmake_installed_pkg_config_builds_the_consumer see $dir/consumer-pc.log"
+  fi
+else
+  echo "FAIL cmake_installed_pkg_config_builds_the_consumer pkg-config is not installed (apt-get install pkgconf)"
 fi
 
 # 3. add_subdirectory on the sources (no install needed).

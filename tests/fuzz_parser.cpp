@@ -21,11 +21,12 @@
 #include <string>
 #include <vector>
 
-#include "bvh.h"
-#include "intersect.h"
-#include "scene.h"
-#include "shapes.h"
-#include "svg.h"
+#include <bvh/bvh.h>
+#include <bvh/intersect.h>
+#include <bvh/scene.h>
+#include <bvh/shapes.h>
+#include <bvh/svg.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 int bvh_parse_command_line(int argc, char **argv, int &split_threshold, int &depth_limit, std::string &message);
 

@@ -28,7 +28,8 @@
 #include <thread>
 #include <vector>
 
-#include "bvh.h"
+#include <bvh/bvh.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include "check.h"
 #include "scenes.h"
 

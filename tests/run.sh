@@ -217,6 +217,8 @@ unit_tests() {
   run_suite test_disjoint "$BUILD/test_lanes" disjoint
   # Fault injection: every mutating operation at its k-th copy and allocation (issue 21).
   run_suite test_exceptions "$BUILD/test_exceptions"
+  # The engine and the course's edition (the top-level bvh.h) against each other.
+  run_suite test_editions "$BUILD/test_editions"
   # (collision()'s scalar fallback, BVH_NO_SIMD: the sanitizer layer's build.)
 }
 
@@ -226,7 +228,7 @@ unit_tests() {
 # was built: here their output ($BUILD/check/test_*.out) is read.
 unit_tests_quick() {
   local t out LOG rc
-  for t in bvh threads intersect dynamic moving lazy_handles parse; do
+  for t in bvh threads intersect dynamic moving lazy_handles parse editions; do
     out=$BUILD/check/test_$t.out
     logname "test_$t"
     if [ ! -f "$out" ]; then
@@ -262,6 +264,7 @@ sanitizers() {
   run_suite test_names$s "$BUILD/test_names_san"
   BVH_TEST_SCALE=0.05 run_suite test_disjoint$s "$BUILD/test_lanes_san" disjoint
   BVH_TEST_SCALE=0.2 run_suite test_exceptions$s "$BUILD/test_exceptions_san"
+  BVH_TEST_SCALE=0.2 run_suite test_editions$s "$BUILD/test_editions_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
   run_case sanitized_cli_discard_overlap bash -c "
     '$BUILD/bvh_san.out' -i inputs/gen_overlap_1000.triangles -o '$OUT/san.html' --depth_limit 8 --incremental \
@@ -315,7 +318,7 @@ tsan() {
 # bvh.h alone in the course's framework (stand-ins written from the spec),
 # as the homework server builds it: tests/course_framework.sh.
 course_framework() {
-  run_suite course_framework bash tests/course_framework.sh
+  EXTRAS=yes run_suite course_framework bash tests/course_framework.sh
 }
 
 # examples/*.cpp (the library snippets of README.txt and docs/ as programs):

@@ -25,7 +25,8 @@
 // insert_disjoint's thresholds lowered, and the probe of its steps.
 #include "lanes_probe.h"
 
-#include "bvh.h"
+#include <bvh/bvh.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include "check.h"
 #include "scenes.h"
 

@@ -27,7 +27,8 @@
 #include <tuple>
 #include <vector>
 
-#include "bvh.h"
+#include <bvh/bvh.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 // make test builds this suite with g++ under -std=c++20 (the unit suites'
 // C++20 build is the sanitizer build's, by clang++ and libc++ when they are

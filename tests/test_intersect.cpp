@@ -20,8 +20,9 @@
 #include <vector>
 
 #include "check.h"
-#include "bvh.h"
-#include "intersect.h"
+#include <bvh/bvh.h>
+#include <bvh/intersect.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 
 namespace {
 
@@ -974,16 +975,17 @@ TEST(filtered_predicates_match_reference_near_zero) {
 TEST(expansion_arithmetic_is_exact) {
   // Values whose exact result needs more than one double.
   using namespace bvh::exact::detail;
+  const auto detail_exact = [](double v) { return bvh::exact::detail::exact(v); };
   const double big = std::ldexp(1.0, 60);
-  CHECK_EQ((exact_sum(big, 1.0) - exact(big)).sign(), 1);
-  CHECK_EQ((exact_sum(big, -1.0) - exact(big)).sign(), -1);
+  CHECK_EQ((exact_sum(big, 1.0) - detail_exact(big)).sign(), 1);
+  CHECK_EQ((exact_sum(big, -1.0) - detail_exact(big)).sign(), -1);
   CHECK_EQ((exact_diff(big, big)).sign(), 0);
   // (2^30 + 1)^2 - 2^60 - 2^31 - 1 == 0, and +-1 around it.
   const Expansion<2> x = exact_sum(std::ldexp(1.0, 30), 1.0);
   const auto sq = x * x;
-  CHECK_EQ((sq - exact_sum(big, std::ldexp(1.0, 31)) - exact(1.0)).sign(), 0);
+  CHECK_EQ((sq - exact_sum(big, std::ldexp(1.0, 31)) - detail_exact(1.0)).sign(), 0);
   CHECK_EQ((sq - exact_sum(big, std::ldexp(1.0, 31))).sign(), 1);
-  CHECK_EQ((sq - exact_sum(big, std::ldexp(1.0, 31)) - exact(2.0)).sign(), -1);
+  CHECK_EQ((sq - exact_sum(big, std::ldexp(1.0, 31)) - detail_exact(2.0)).sign(), -1);
 }
 
 int main(int argc, char **argv) { return run_all_tests(argc, argv); }

@@ -22,7 +22,8 @@
 // and the probe of its steps: the lanes' test checks that they ran.
 #include "lanes_probe.h"
 
-#include "bvh.h"
+#include <bvh/bvh.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include "check.h"
 #include "scenes.h"
 

@@ -17,7 +17,8 @@
 #include <utility>
 #include <vector>
 
-#include "bvh.h"
+#include <bvh/bvh.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include "check.h"
 #include "scenes.h"
 

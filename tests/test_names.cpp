@@ -1,13 +1,12 @@
-// tests/test_names.cpp — bvh.h fits beside a program's own global names.
-// With BVH_NO_GLOBAL_NAMES, including bvh.h (and with it shapes.h,
-// intersect.h, distance.h) declares nothing at global scope, so a program
+// tests/test_names.cpp — the library fits beside a program's own global
+// names. Including <bvh/bvh.h> (and with it shapes.h, intersect.h,
+// distance.h) and <bvh/svg.h> declares nothing at global scope, so a program
 // with its own Point, Color, BoundingBox, Disk, Shape, BVH, intersect and
 // distance compiles: any global name bvh.h declared would clash with these.
 // Then the library works through namespace bvh, and a user type with
 // traits works too.
-#define BVH_NO_GLOBAL_NAMES
-#include "bvh.h"
-#include "svg.h"
+#include <bvh/bvh.h>
+#include <bvh/svg.h>
 
 // The program's own globals, as a game (raylib: Color) or a GIS has them.
 struct Point { float x, y; };

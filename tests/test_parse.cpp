@@ -16,7 +16,8 @@
 #include <vector>
 
 #include "check.h"
-#include "scene.h"
+#include <bvh/scene.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include "scenes.h"
 
 namespace {

@@ -47,10 +47,11 @@
 #include <utility>
 #include <vector>
 
-#include "bvh.h"
+#include <bvh/bvh.h>
 #include "check.h"
-#include "intersect.h"
-#include "scene.h"
+#include <bvh/intersect.h>
+#include <bvh/scene.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include "scenes.h"
 
 #define main suite_main

@@ -7,6 +7,7 @@
 
 #include <bvh/bvh.h>
 #include <bvh/scene.h>
+using namespace bvh; // the library's names (Disk, BVH, intersect), unqualified
 
 static_assert(__cplusplus >= 201703L, "bvh::bvh asks for C++17");
 // bvh::bvh puts only the folder that holds bvh/ on the include path, both
@@ -16,7 +17,21 @@ static_assert(__cplusplus >= 201703L, "bvh::bvh asks for C++17");
 #error "bvh::bvh exposes its headers without the bvh/ prefix"
 #endif
 
+#define BVH_STR2(x) #x
+#define BVH_STR(x) BVH_STR2(x)
+// The header's version is the package's (CMake's project version).
+static_assert(BVH_VERSION == BVH_VERSION_MAJOR * 10000 + BVH_VERSION_MINOR * 100 + BVH_VERSION_PATCH, "BVH_VERSION");
+
 int main(int argc, char **argv) {
+#ifdef BVH_PACKAGE_VERSION
+  const std::string header_version =
+      BVH_STR(BVH_VERSION_MAJOR) "." BVH_STR(BVH_VERSION_MINOR) "." BVH_STR(BVH_VERSION_PATCH);
+  if (header_version != BVH_PACKAGE_VERSION) {
+    std::cerr << "consumer: the header says version " << header_version << ", the package " << BVH_PACKAGE_VERSION
+              << "\n";
+    return 1;
+  }
+#endif
   if (argc != 2) {
     std::cerr << "usage: consumer SCENE.disks\n";
     return 2;

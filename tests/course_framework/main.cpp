@@ -1,7 +1,10 @@
 // main.cpp — stand-in for the course's main.cpp: it uses BVH<T> exactly as
 // ../shared/spec/course-framework.md says the course's does, and nothing
 // more (construct or insert with collision, statistics when a depth limit
-// is given, render_recolor, iteration through a const reference).
+// is given, render_recolor, iteration through a const reference). Its
+// files: this one, scene_io.h (the scene reader and picture writer that
+// the course's main.cpp has inside), shapes.h/.cpp and utils.h/.cpp, with
+// a bvh.h beside them: g++ -g -Wall main.cpp shapes.cpp utils.cpp
 //
 //   ./bvh.out -i FILE -o OUT.html [--split_threshold K] [--depth_limit D]
 //             [--incremental [--discard_overlap]] [--visualize] [--print_tree]
