@@ -48,7 +48,8 @@ int main() {
             << "), height " << wide.height() << " against " << course.height() << ", " << wide_bytes / wide.size()
             << " bytes a shape against " << course_bytes / course.size() << "; fill: children " << fill.children
             << ", leaves " << fill.shapes << "\n";
-  const bool ok = same && wide.validate() && tree.validate() && wide.height() < course.height() && wide_bytes < course_bytes &&
+  const bool ok = same && wide.validate() && tree.validate() && wide.height() < course.height() &&
+                  wide_bytes < course_bytes &&
                   fill.children > 0 && fill.children <= 1 && fill.shapes > 0;
   std::cout << (ok ? "ok" : "MISMATCH") << "\n";
   return ok ? 0 : 1;

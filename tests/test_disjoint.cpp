@@ -355,7 +355,8 @@ TEST(disjoint_lanes_are_the_loop_at_width_8) { lanes_at_width<8>(base_seed() + 5
 /// fingerprint() without its printed numbers: every shape in iteration
 /// order with its handle, the height and the node count.
 template <class T> bool same_as_loop(const T &tree, const T &loop) {
-  if (tree.size() != loop.size() || tree.height() != loop.height() || tree.node_count() != loop.node_count()) return false;
+  if (tree.size() != loop.size() || tree.height() != loop.height() || tree.node_count() != loop.node_count())
+    return false;
   for (auto a = tree.begin(), b = loop.begin(); a != tree.end(); ++a, ++b)
     if (a.id() != b.id() || !(*a == *b)) return false;
   return true;

@@ -684,7 +684,9 @@ bool probes_agree(const Tree &tree, const std::vector<Disk> &stored, const std::
       hits += intersect(d, p) ? 1 : 0;
       boxes += d.getBox().overlaps(box) ? 1 : 0;
     }
-    const auto which = [&] { return "probe " + std::to_string(k) + " " + key_of(p) + " (" + std::to_string(hits) + " hits): "; };
+    const auto which = [&] {
+      return "probe " + std::to_string(k) + " " + key_of(p) + " (" + std::to_string(hits) + " hits): ";
+    };
     if (tree.collision(p) != (hits != 0)) return *why = which() + "collision()", false;
     if (each[k] != (hits != 0)) return *why = which() + "collisions()", false;
     std::size_t found = 0, wrong = 0;
