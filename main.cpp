@@ -642,6 +642,8 @@ Options parse_options(int argc, char **argv) {
       o.overlap = true;
     }
   }
+  // What is missing, in the order the usage names it: the input first.
+  if (!o.generate && o.input.empty()) throw UsageError{"missing -i INPUT"};
   if (o.no_output) {
     if (o.generate) throw UsageError{"--generate needs -o SCENE, not --no_output"};
     if (!o.output.empty()) throw UsageError{"--no_output and -o exclude each other"};
@@ -654,7 +656,6 @@ Options parse_options(int argc, char **argv) {
       throw UsageError{"the generated scene's name must end in ." + o.kind + ": '" + o.output + "'"};
     return o;
   }
-  if (o.input.empty()) throw UsageError{"missing -i INPUT"};
   if (o.discard_overlap && !o.incremental) throw UsageError{"--discard_overlap needs --incremental"};
   if (!o.no_output && !ends_with(o.output, ".html") && !ends_with(o.output, ".svg"))
     throw UsageError{"the picture's name must end in .html or .svg: '" + o.output + "'"};

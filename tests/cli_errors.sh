@@ -60,6 +60,10 @@ expect cli_negative_depth 2 "--depth_limit needs an integer from 0" -- -i $good 
 expect cli_trailing_junk_number 2 "--depth_limit needs an integer" -- -i $good -o "$o" --depth_limit 3x
 expect cli_missing_input_flag 2 "missing -i" -- -o "$o"
 expect cli_missing_output_flag 2 "missing -o" -- -i $good
+# No arguments: the first thing missing, -i, and the usage (checked on stderr's last line).
+expect cli_no_arguments_names_the_input_first 2 "missing -i INPUT" --
+if "$bin" 2>&1 >/dev/null | grep -q "^usage: bvh.out"; then echo "ok cli_no_arguments_prints_the_usage$tag"; else
+  echo "FAIL cli_no_arguments_prints_the_usage$tag no usage on stderr"; fi
 expect cli_unknown_suffix 2 "unknown input kind" -- -i tests/golden.list -o "$o"
 expect cli_missing_input_file 2 "cannot open" -- -i "$dir/nothing.disks" -o "$o"
 expect cli_discard_without_incremental 2 "needs --incremental" -- -i $good -o "$o" --discard_overlap
