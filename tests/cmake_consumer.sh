@@ -82,17 +82,21 @@ if step cmake_configure_build_install_bvh bvh bash -c "
   fi
 fi
 
-# 2b. pkg-config against the install: the consumer built with its flags alone.
+# 2b. pkg-config against the install: the consumer built with its flags alone,
+# from a second install of the same build at another prefix (cmake --install
+# --prefix, with no reconfigure: bvh.pc must follow the files it describes).
 if command -v pkg-config >/dev/null 2>&1; then
-  pc_dir=$prefix/share/pkgconfig
+  cmake --install "$dir/bvh-build" --prefix "$dir/prefix-moved" >"$dir/install-moved.log" 2>&1
+  pc_dir=$dir/prefix-moved/share/pkgconfig
   if [ -f "$pc_dir/bvh.pc" ] && flags=$(PKG_CONFIG_PATH=$pc_dir pkg-config --cflags --libs bvh) &&
+    [[ $flags == *"$dir/prefix-moved/"* ]] &&
     version=$(PKG_CONFIG_PATH=$pc_dir pkg-config --modversion bvh) &&
     ${CXX:-g++} -std=c++17 -O0 tests/consumer/consumer.cpp -DBVH_PACKAGE_VERSION="\"$version\"" $flags \
       -o "$dir/consumer-pc" >"$dir/consumer-pc.log" 2>&1 &&
     "$dir/consumer-pc" inputs/gen_overlap_1000.disks >>"$dir/consumer-pc.log" 2>&1; then
     echo "ok cmake_installed_pkg_config_builds_the_consumer"
   else
-    echo "FAIL cmake_installed_pkg_config_builds_the_consumer see $dir/consumer-pc.log"
+    echo "FAIL cmake_installed_pkg_config_builds_the_consumer flags '${flags:-}' (from $pc_dir); see $dir/consumer-pc.log"
   fi
 else
   echo "FAIL cmake_installed_pkg_config_builds_the_consumer pkg-config is not installed (apt-get install pkgconf)"
