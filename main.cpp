@@ -4,7 +4,7 @@
 // shape at a time (optionally discarding shapes that touch one already
 // kept: Poisson-disk sampling), prints the course's statistics and writes
 // an SVG picture. It also generates random scenes in the same format. The
-// scene reader and the generator are scene.h's; this file is the command line.
+// scene reader is scene.h, the generator generate.h; this file is the command line.
 //
 //   ./bvh.out -i 36.triangles -o out.html --depth_limit 2 --visualize --print_tree
 //   ./bvh.out -i overlap_1000.disks -o out.html --depth_limit 8 --incremental --discard_overlap
@@ -45,7 +45,7 @@
 #include <vector>
 
 #include <bvh/bvh.h>
-#include <bvh/scene.h>
+#include <bvh/generate.h>
 #include <bvh/shapes.h>
 #include <bvh/svg.h>
 using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
@@ -307,12 +307,12 @@ private:
 };
 
 // ---------------------------------------------------------------------------
-// --generate: the scene text (scene.h), written under a temporary name.
+// --generate: the scene text (generate.h), written under a temporary name.
 
 // On a terminal, the progress line shows the shapes placed and the tries
 // made ("generating 1000000 disks: 59 of 1000000 shapes (0%), 4.2M tries").
 // A non-overlapping request that cannot fit by max_non_overlapping()'s
-// packing bound (scene.h) is refused before the first try.
+// packing bound (generate.h) is refused before the first try.
 template <class T>
 int generate(const std::string &kind, long count, std::uint64_t seed, double lo, double hi, bool overlap,
              const std::string &path) {

@@ -8,7 +8,7 @@
 #ifndef BVH_COURSE_SHAPES_H
 #define BVH_COURSE_SHAPES_H
 
-#include "include/bvh/shapes.h"
+#include "include/bvh/distance.h" // (the shapes, intersect() and distance())
 
 using bvh::BoundingBox;
 using bvh::Color;

@@ -36,7 +36,7 @@
 // otherwise the run prints "skipped NAME: apt-get install PACKAGE". To see
 // that path with the peers installed, add -DBENCH_NO_BOOST / -DBENCH_NO_BOX2D.
 
-// insert_disjoint's step timings (bvh.h section 8b): the serial fraction
+// insert_disjoint's step timings (include/bvh/disjoint.h): the serial fraction
 // that ours-par prints (steps 1, 2 and 4 parallel, 3 and 0 serial).
 // Each step's wall seconds (bvh.h's) and the process's CPU seconds in it
 // (all threads: the work, which a loaded machine inflates less than the

@@ -31,7 +31,7 @@ export CXX COURSE_DATA BUILD JOBS
 # Arguments: none (every layer: make test), --quick (make check: bvh.out and
 # the unit tests at -Og, then the unit and golden layers), or layer names
 # (the full build, then only those layers: tests/run.sh valgrind golden).
-ALL_LAYERS="fuzz valgrind sanitizers cmake course_framework golden python_model unit cli_errors cli_output cli_threads cli_widths demo examples asserts tsan browser"
+ALL_LAYERS="fuzz valgrind sanitizers headers cmake course_framework golden python_model unit cli_errors cli_output cli_threads cli_widths demo examples asserts tsan browser"
 QUICK=no
 ONLY=()
 for a in "$@"; do
@@ -525,6 +525,12 @@ valgrind_layer() {
     --depth_limit 6 --incremental --discard_overlap --visualize --print_tree --pairs
 }
 
+# include/bvh/'s rules (docs/design.txt): every header listed, includes
+# going one way, every header compiling alone (tests/headers.sh).
+headers_layer() {
+  JOBS=1 bash tests/headers.sh "$OUT/headers"
+}
+
 # The CMake package: install + find_package, and add_subdirectory (tests/cmake_consumer.sh).
 cmake_package() {
   bash tests/cmake_consumer.sh "$OUT/cmake" >"$LOGS/cmake_consumer.log" 2>&1
@@ -663,6 +669,7 @@ else
   layer unit unit_tests
   layer course_framework course_framework
   layer cmake cmake_package
+  layer headers headers_layer
   layer tsan tsan
   layer fuzz fuzz
   layer browser browser

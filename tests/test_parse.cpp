@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "check.h"
-#include <bvh/scene.h>
+#include <bvh/generate.h>
 using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include "scenes.h"
 

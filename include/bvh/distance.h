@@ -11,9 +11,6 @@
 // exact) with a relative error of a few units in the last place. Triangles
 // and quads may be degenerate (segments, points) and quads non-convex: the
 // boundary is the polygon's edges in order. O(1) per call.
-// shapes.h first, outside the guard, as in intersect.h.
-#include "shapes.h"
-
 #ifndef BVH_DISTANCE_H
 #define BVH_DISTANCE_H
 

@@ -31,13 +31,10 @@
 // too close to zero for its bound (touching or within ~1e-15 relative of it)
 // does it fall back to exact expansion arithmetic (tens to a few thousand
 // flops, on the stack).
-// shapes.h first, outside the guard: shapes.h includes this file at its
-// end, so whichever of the two is included first, the shapes are complete
-// before the predicates.
-#include "shapes.h"
-
 #ifndef BVH_INTERSECT_H
 #define BVH_INTERSECT_H
+
+#include "shapes.h"
 
 #include <algorithm>
 #include <cfloat>
@@ -57,6 +54,7 @@ static_assert(std::numeric_limits<double>::is_iec559 && FLT_EVAL_METHOD == 0,
               "intersect.h needs IEEE doubles evaluated without extended precision");
 
 namespace bvh {
+
 namespace exact {
 
 namespace detail {

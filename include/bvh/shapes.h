@@ -332,12 +332,4 @@ private:
 } // namespace bvh
 
 
-// This project's exact predicates and distances come with its shapes, so
-// that code including only "bvh.h" (which includes only "shapes.h", as the
-// course's server requires) finds intersect() and distance() for them.
-// Both headers include this one first, outside their guards, so any
-// include order works.
-#include "intersect.h"
-#include "distance.h"
-
 #endif // BVH_SHAPES_H

@@ -1,0 +1,63 @@
+#!/usr/bin/env bash
+# tests/headers.sh — the rules of include/bvh/ that docs/design.txt states:
+#  - every header is listed in docs/design.txt (a "-- NAME.h" line);
+#  - includes go one way: a header includes (with #include "...") only
+#    headers listed above it there;
+#  - every header compiles alone (-fsyntax-only, -Wall -Wextra -pedantic
+#    -Werror) as the one include of a translation unit.
+# Prints `ok NAME` or `FAIL NAME — why` per case (tests/run.sh's layer
+# format). Environment: CXX (default: clang++ when installed, whose
+# -fsyntax-only is the quicker, else g++), JOBS.
+set -u
+cd "$(dirname "$0")/.."
+if [ -z "${HEADERS_CXX:-}" ]; then
+  if command -v clang++ >/dev/null 2>&1; then HEADERS_CXX=clang++; else HEADERS_CXX=${CXX:-g++}; fi
+fi
+JOBS=${JOBS:-2}
+out=${1:-build/test-out/headers}
+mkdir -p "$out"
+
+# The order of docs/design.txt.
+mapfile -t order < <(sed -n 's/^-- \([A-Za-z0-9_]*\.h\)$/\1/p' docs/design.txt)
+declare -A rank
+for i in "${!order[@]}"; do rank[${order[$i]}]=$i; done
+
+for path in include/bvh/*.h; do
+  h=$(basename "$path")
+  if [ -z "${rank[$h]+x}" ]; then
+    echo "FAIL header_listed_$h — include/bvh/$h is not in docs/design.txt's map (a '-- $h' line)"
+    continue
+  fi
+  echo "ok header_listed_$h"
+  bad=""
+  while read -r inc; do
+    if [ -z "${rank[$inc]+x}" ]; then
+      bad+="$inc (not in the map) "
+    elif [ "${rank[$inc]}" -ge "${rank[$h]}" ]; then
+      bad+="$inc (listed below $h) "
+    fi
+  done < <(sed -n 's/^[[:space:]]*#[[:space:]]*include[[:space:]]*"\([^"]*\)".*/\1/p' "$path")
+  if [ -n "$bad" ]; then
+    echo "FAIL header_includes_go_one_way_$h — $h includes $bad"
+  else
+    echo "ok header_includes_go_one_way_$h"
+  fi
+done
+for h in "${order[@]}"; do
+  [ -f "include/bvh/$h" ] || echo "FAIL header_exists_$h — docs/design.txt lists $h, which include/bvh/ does not have"
+done
+
+# Each header alone, JOBS at a time.
+compile_alone() {
+  local h=$1 log=$2/$1.log
+  if echo "#include <bvh/$h>" | $HEADERS_CXX -std=c++17 -fsyntax-only -Wall -Wextra -pedantic -Werror -Iinclude \
+    -x c++ - >"$log" 2>&1; then
+    echo "ok header_compiles_alone_$h"
+  else
+    echo "FAIL header_compiles_alone_$h — see $log: $(grep -m 1 -E 'error' "$log")"
+  fi
+}
+export -f compile_alone
+export HEADERS_CXX
+printf '%s\n' include/bvh/*.h | xargs -n 1 basename | xargs -P "$JOBS" -I{} bash -c 'compile_alone "$1" "$2"' _ {} "$out" |
+  sort
