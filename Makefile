@@ -139,9 +139,9 @@ TSAN_FLAGS := -std=c++17 -O0 -g1 -Wall -Wextra -pedantic -fsanitize=thread
 $(BUILD)/test_%_tsan: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 	$(TSAN_CXX) $(TSAN_FLAGS) -Iinclude -Itests $< -o $@
 # (insert_disjoint's lanes under TSan from two threads on every tree: the
-# override BVH_DISJOINT_LANES_THREADS, which no other build sets)
+# lowered Tuning::disjoint_lanes_threads, LANES_PROBE_LANES_THREADS=2, which no other build sets)
 $(BUILD)/test_lanes_tsan: $(LANES_SOURCES) | $(BUILD)
-	$(TSAN_CXX) $(TSAN_FLAGS) -DBVH_DISJOINT_LANES_THREADS=2 -Iinclude -Itests $< -o $@
+	$(TSAN_CXX) $(TSAN_FLAGS) -DLANES_PROBE_LANES_THREADS=2 -Iinclude -Itests $< -o $@
 
 $(BUILD)/example_%: examples/%.cpp $(HEADERS) | $(BUILD)
 	$(EXAMPLE_CXX) $(EXAMPLE_CXXFLAGS) -Iinclude $< -o $@

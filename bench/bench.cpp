@@ -36,32 +36,18 @@
 // otherwise the run prints "skipped NAME: apt-get install PACKAGE". To see
 // that path with the peers installed, add -DBENCH_NO_BOOST / -DBENCH_NO_BOX2D.
 
-// insert_disjoint's step timings (include/bvh/disjoint.h): the serial fraction
-// that ours-par prints (steps 1, 2 and 4 parallel, 3 and 0 serial).
-// Each step's wall seconds (bvh.h's) and the process's CPU seconds in it
+// insert_disjoint's step timings (bvh::DisjointSteps, include/bvh/disjoint.h):
+// the serial fraction that ours-par prints (steps 1, 2 and 4 parallel, 3 and
+// 0 serial), each step's wall seconds and the process's CPU seconds in it
 // (all threads: the work, which a loaded machine inflates less than the
-// wall time).
+// wall time). Only the methods that print them (ours-par, ours-par1) pass
+// one; the others are timed without the clock.
 #include <ctime>
-namespace bench_profile {
-inline double step_seconds[5] = {0, 0, 0, 0, 0}, step_cpu[5] = {0, 0, 0, 0, 0};
 inline double cpu_now() {
   timespec t{};
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
   return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
 }
-inline double cpu_last = 0;
-/// Only the methods that print the steps' figures (ours-par, ours-par1)
-/// turn the clock on; the others are timed without it.
-inline bool enabled = false;
-inline void add(int step, double seconds) {
-  const double now = cpu_now();
-  step_seconds[step] += seconds;
-  step_cpu[step] += now - cpu_last;
-  cpu_last = now;
-}
-} // namespace bench_profile
-#define BVH_DISJOINT_PROFILE bench_profile::add
-#define BVH_DISJOINT_PROFILE_ON bench_profile::enabled
 
 #include <bvh/bvh.h>
 #include <bvh/scene.h>
@@ -243,23 +229,17 @@ template <class T, int W> Outcome discard_ours_sampled(const std::vector<T> &c, 
 /// fraction of its steps on stderr (parallel: the queries against the tree
 /// and the survivors' pair tests; serial: the rest, mostly the insertions).
 template <class T> Outcome discard_ours_par(const std::vector<T> &c, unsigned threads) {
-  for (double &s : bench_profile::step_seconds) s = 0;
-  for (double &s : bench_profile::step_cpu) s = 0;
   Outcome o;
-  struct On {
-    On() { bench_profile::enabled = true; }
-    ~On() { bench_profile::enabled = false; }
-  } on;
+  bvh::DisjointSteps steps;
   Timer timer;
-  bench_profile::cpu_last = bench_profile::cpu_now();
-  const double cpu_start = bench_profile::cpu_last;
+  const double cpu_start = cpu_now();
   BVH<T> tree(4, 0);
-  const std::vector<std::size_t> kept = tree.insert_disjoint(c, threads);
+  const std::vector<std::size_t> kept = tree.insert_disjoint(c, threads, &steps);
   o.seconds = timer.stop();
   o.ids.assign(kept.begin(), kept.end());
-  const double cpu = bench_profile::cpu_now() - cpu_start;
-  const double *t = bench_profile::step_seconds;
-  const double *u = bench_profile::step_cpu;
+  const double cpu = cpu_now() - cpu_start;
+  const double *t = steps.seconds;
+  const double *u = steps.cpu_seconds;
   const double serial = t[0] + t[3], parallel = t[1] + t[2] + t[4];
   if (serial + parallel > 0) {
     std::cerr << "bench: insert_disjoint(" << threads << "): steps 1 (queries) " << fmt("%.4f", t[1])

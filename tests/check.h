@@ -159,4 +159,14 @@ template <std::size_t N> int run_suite(int argc, char **argv, const Suite (&suit
 }
 } // namespace check
 
+/// Disks decided from their leaves' codes at every size (the library's
+/// default starts at 4 MB of disks), so that the model tests check those
+/// decisions on small trees: through set_tuning(), as a user would.
+template <class Tree> Tree &codes_at_every_size(Tree &tree) {
+  typename Tree::Tuning t = tree.tuning();
+  t.disk_codes_min_shapes = 0;
+  tree.set_tuning(t);
+  return tree;
+}
+
 #endif // BVH_TESTS_CHECK_H

@@ -4,7 +4,9 @@
 #  - includes go one way: a header includes (with #include "...") only
 #    headers listed above it there;
 #  - every header compiles alone (-fsyntax-only, -Wall -Wextra -pedantic
-#    -Werror) as the one include of a translation unit.
+#    -Werror) as the one include of a translation unit;
+#  - the removed tuning macros are refused with a message naming
+#    set_tuning() or DisjointSteps.
 # Prints `ok NAME` or `FAIL NAME — why` per case (tests/run.sh's layer
 # format). Environment: CXX (default: clang++ when installed, whose
 # -fsyntax-only is the quicker, else g++), JOBS.
@@ -45,6 +47,21 @@ for path in include/bvh/*.h; do
 done
 for h in "${order[@]}"; do
   [ -f "include/bvh/$h" ] || echo "FAIL header_exists_$h — docs/design.txt lists $h, which include/bvh/ does not have"
+done
+
+# The tuning and profiling macros of earlier versions changed template
+# bodies; they are gone, and defining one must fail with a message that
+# names the replacement, not be silently ignored.
+for m in BVH_DISK_CODES_MIN_BYTES BVH_DISJOINT_LANES_MIN BVH_DISJOINT_PROFILE; do
+  log=$out/removed_$m.log
+  if printf '#define %s 1\n#include <bvh/core.h>\n' "$m" | $HEADERS_CXX -std=c++17 -fsyntax-only -Iinclude -x c++ - \
+    >"$log" 2>&1; then
+    echo "FAIL removed_macro_refused_$m — a program defining $m still compiles"
+  elif grep -q 'set_tuning\|DisjointSteps' "$log"; then
+    echo "ok removed_macro_refused_$m"
+  else
+    echo "FAIL removed_macro_refused_$m — the error does not name the replacement: $(grep -m 1 error "$log")"
+  fi
 done
 
 # Each header alone, JOBS at a time.

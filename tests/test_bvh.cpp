@@ -6,13 +6,10 @@
 // Seeds: BVH_SEED (default 12345) and BVH_TEST_SCALE (default 1; larger
 // runs more random cases, 0.1 is for valgrind). Every randomized case prints
 // its seed and case number with any failure.
-// Collision searches decide disks from their leaves' codes at every size
-// here (bvh.h's default starts at 4 MB of disks), so that the model tests
-// check those decisions (test_exceptions, test_lazy_handles and test_names
-// keep the default).
-#ifndef BVH_DISK_CODES_MIN_BYTES
-#define BVH_DISK_CODES_MIN_BYTES 0
-#endif
+// Collision searches of the wide trees decide disks from their leaves'
+// codes at every size here (codes_at_every_size, tests/check.h: the
+// library's default starts at 4 MB of disks), so that the model tests
+// check those decisions.
 
 #include <algorithm>
 #include <cmath>
@@ -633,6 +630,7 @@ template <int W> void summaries_hold_extreme_disks(unsigned seed, int split) {
     return Disk(Point(xy(rng), xy(rng)), r(rng), Color());
   };
   BVH<Disk, bvh::shape_traits<Disk>, W> tree(split);
+  codes_at_every_size(tree);
   std::vector<Disk> model;
   std::vector<typename BVH<Disk, bvh::shape_traits<Disk>, W>::handle> handles;
   std::string why;
@@ -838,8 +836,11 @@ template <int W> void collisions_near_tangency(unsigned seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(0, 1);
   BVH<Disk, bvh::shape_traits<Disk>, W> tree(W == 8 ? 32 : 16);
+  codes_at_every_size(tree);
   BVH<Disk, NoPromise, W> plain(W == 8 ? 32 : 16);
+  codes_at_every_size(plain);
   BVH<Disk, FloatBoxDisks, W> floats(W == 8 ? 32 : 16);
+  codes_at_every_size(floats);
   std::vector<Disk> kept;
   const double offset = rng() % 2 ? 0 : 4096;
   for (int i = 0; i < scaled(4000); ++i) {
@@ -913,14 +914,17 @@ template <int W> void lone_shape_with_nan_side(double margin) {
     why.clear();
   };
   Tree first(W == 3 ? 4 : 16);
+  codes_at_every_size(first);
   first.set_margin(margin);
   refused(first, [&](Tree &t) { t.insert(odd); }, "inserted first", 0);
   Tree moved(W == 3 ? 4 : 16);
+  codes_at_every_size(moved);
   moved.set_margin(margin);
   const auto h = moved.insert(plain);
   refused(moved, [&](Tree &t) { t.update(h, odd); }, "updated alone", 1);
   CHECK(moved.get(h) == plain);
   Tree sampled(W == 3 ? 4 : 16);
+  codes_at_every_size(sampled);
   sampled.set_margin(margin);
   refused(sampled, [&](Tree &t) { t.insert_disjoint(std::vector<Disk>{odd}, 1); }, "sampled", 0);
   // and the ordinary shapes beside it still go in

@@ -22,10 +22,9 @@
 #include <thread>
 #include <vector>
 
+#include <bvh/bvh.h>
 // insert_disjoint's thresholds lowered, and the probe of its steps.
 #include "lanes_probe.h"
-
-#include <bvh/bvh.h>
 using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include "check.h"
 #include "scenes.h"
@@ -95,7 +94,7 @@ void check_against_loop(const std::vector<T> &base, Start how, const std::vector
   for (unsigned threads : thread_counts()) {
     note(where + " threads " + std::to_string(threads));
     Tree<T, W> tree = starting_tree<T, W>(base, how, split, depth);
-    const std::vector<std::size_t> kept = tree.insert_disjoint(candidates, threads);
+    const std::vector<std::size_t> kept = lanes_probe::insert_disjoint(tree, candidates, threads);
     CHECK(kept == loop_kept);
     std::string why;
     CHECK(tree.validate(&why));
@@ -175,7 +174,7 @@ TEST(disjoint_batches_adapt_and_stay_exact) {
 }
 
 /// A size of the lanes' cases: scaled down, but never below a 32nd, so
-/// that trees keep above BVH_DISJOINT_LANES_MIN.
+/// that trees keep above the lowered Tuning::disjoint_lanes_min.
 int lanes_scaled(int n) { return std::max(n / 32, scaled(n)); }
 
 // A long run of rejected candidates (they fall on one big disk) grows the
@@ -240,7 +239,7 @@ TEST(disjoint_lanes_are_the_loop) {
     tree.set_build_rule(BVH<Shape>::BuildRule::sah);
     tree.construct(base);
     const std::size_t before = lanes_probe::laps();
-    tree.insert_disjoint(c, threads);
+    lanes_probe::insert_disjoint(tree, c, threads);
     CHECK(lanes_probe::laps() > before);
     CHECK(tree.validate());
     CHECK(fingerprint(tree) == fingerprint(loop));
@@ -278,10 +277,10 @@ BVH<Disk, bvh::shape_traits<Disk>, W> constructed_then_loop(const std::vector<Di
   return loop;
 }
 
-// A call made while BVH_DISJOINT_PROFILE_ON is false reports no lap (it
-// reads no clock) and keeps what the loop keeps; the next call with it
-// true reports laps again.
-TEST(disjoint_profile_off_reports_no_lap) {
+// A call given a DisjointSteps adds each step's laps and wall time to it,
+// and keeps what the loop keeps, as a call given none does (which reads no
+// clock).
+TEST(disjoint_steps_report_their_laps) {
   const unsigned seed = base_seed() + 530;
   note("BVH_SEED=" + std::to_string(seed));
   Maker make(seed);
@@ -289,14 +288,24 @@ TEST(disjoint_profile_off_reports_no_lap) {
   const std::vector<Disk> c = lanes_candidates(make);
   const BVH<Disk, bvh::shape_traits<Disk>, 8> loop = constructed_then_loop<8>(base, c, 32);
   for (unsigned threads : {1u, 2u}) {
-    for (bool on : {false, true}) {
+    for (bool timed : {false, true}) {
+      note("threads " + std::to_string(threads) + (timed ? " timed" : " untimed"));
       BVH<Disk, bvh::shape_traits<Disk>, 8> tree(32);
       tree.construct(base);
-      lanes_probe::on = on;
-      const std::size_t before = lanes_probe::all_laps();
-      tree.insert_disjoint(c, threads);
-      lanes_probe::on = true;
-      CHECK((lanes_probe::all_laps() > before) == on);
+      lanes_probe::lowered(tree);
+      bvh::DisjointSteps steps;
+      tree.insert_disjoint(c, threads, timed ? &steps : nullptr);
+      std::size_t laps = 0;
+      double seconds = 0;
+      for (int step = 0; step < 5; ++step) {
+        laps += steps.laps[step];
+        seconds += steps.seconds[step];
+        CHECK(steps.seconds[step] >= 0);
+      }
+      // Every batch laps steps 1 and 3 at least.
+      CHECK((laps > 0) == timed);
+      CHECK(!timed || (steps.laps[1] > 0 && steps.laps[3] > 0));
+      CHECK(timed || seconds == 0);
       CHECK(tree.validate());
       CHECK(fingerprint(tree) == fingerprint(loop));
     }
@@ -317,28 +326,34 @@ template <int W> void lanes_from_threads(unsigned seed, int split, unsigned thre
   BVH<Disk, bvh::shape_traits<Disk>, W> tree(split);
   tree.construct(base);
   const std::size_t before = lanes_probe::laps();
-  tree.insert_disjoint(c, threads);
+  lanes_probe::insert_disjoint(tree, c, threads);
   if ((lanes_probe::laps() > before) != lanes) note(where + ": lanes " + (lanes ? "expected, none ran" : "ran"));
   CHECK((lanes_probe::laps() > before) == lanes);
   CHECK(tree.validate());
   CHECK(fingerprint(tree) == fingerprint(loop));
 }
-// (The ThreadSanitizer build sets BVH_DISJOINT_LANES_THREADS to 2, the
-// override of disjoint_lanes_threads(): there the wide tree of large
-// leaves takes the lanes on two threads too.)
+// (The ThreadSanitizer build sets LANES_PROBE_LANES_THREADS to 2, which
+// lanes_probe::lowered() gives every tree as Tuning::disjoint_lanes_threads:
+// there the wide tree of large leaves takes the lanes on two threads too.)
 TEST(disjoint_lanes_from_their_thread_count) {
   const unsigned seed = base_seed() + 535;
-  using bvh::detail::disjoint_lanes_threads;
-  if (BVH_DISJOINT_LANES_THREADS == 0) {
-    CHECK(disjoint_lanes_threads<3>(32) == 2 && disjoint_lanes_threads<8>(8) == 2 && disjoint_lanes_threads<8>(16) == 3);
+  const auto disjoint_lanes_threads = [](int width, int split) {
+    const unsigned at_least = LANES_PROBE_LANES_THREADS;
+    return width == 3 ? bvh::detail::disjoint_lanes_threads<3>(split, at_least)
+                      : bvh::detail::disjoint_lanes_threads<8>(split, at_least);
+  };
+  if (LANES_PROBE_LANES_THREADS == 0) {
+    CHECK(disjoint_lanes_threads(3, 32) == 2 && disjoint_lanes_threads(8, 8) == 2 && disjoint_lanes_threads(8, 16) == 3);
   } else {
-    CHECK(disjoint_lanes_threads<3>(4) == unsigned(std::max(2, BVH_DISJOINT_LANES_THREADS)));
-    CHECK(disjoint_lanes_threads<8>(32) == unsigned(std::max(2, BVH_DISJOINT_LANES_THREADS)));
+    CHECK(disjoint_lanes_threads(3, 4) == unsigned(std::max(2, LANES_PROBE_LANES_THREADS)));
+    CHECK(disjoint_lanes_threads(8, 32) == unsigned(std::max(2, LANES_PROBE_LANES_THREADS)));
   }
-  lanes_from_threads<3>(seed, 4, 2, 2 >= disjoint_lanes_threads<3>(4));
-  lanes_from_threads<8>(seed + 1, 4, 2, 2 >= disjoint_lanes_threads<8>(4));
-  lanes_from_threads<8>(seed + 2, 32, 2, 2 >= disjoint_lanes_threads<8>(32));
-  lanes_from_threads<8>(seed + 3, 32, 3, 3 >= disjoint_lanes_threads<8>(32));
+  // Set on a tree, Tuning::disjoint_lanes_threads overrides the choice.
+  CHECK(bvh::detail::disjoint_lanes_threads<8>(32, 2) == 2 && bvh::detail::disjoint_lanes_threads<3>(4, 5) == 5);
+  lanes_from_threads<3>(seed, 4, 2, 2 >= disjoint_lanes_threads(3, 4));
+  lanes_from_threads<8>(seed + 1, 4, 2, 2 >= disjoint_lanes_threads(8, 4));
+  lanes_from_threads<8>(seed + 2, 32, 2, 2 >= disjoint_lanes_threads(8, 32));
+  lanes_from_threads<8>(seed + 3, 32, 3, 3 >= disjoint_lanes_threads(8, 32));
 }
 
 TEST(disjoint_lanes_are_the_loop_at_width_2) { lanes_at_width<2>(base_seed() + 540); }
@@ -431,7 +446,7 @@ template <int W> void margins_lanes_handles(unsigned seed, double margin, bool c
       }
     CHECK(loop_kept == want);
     const std::size_t laps = lanes_probe::laps();
-    const std::vector<std::size_t> kept = tree.insert_disjoint(c, 2);
+    const std::vector<std::size_t> kept = lanes_probe::insert_disjoint(tree, c, 2);
     ++ran;
     // (with a margin the lanes do not run: boxes are then no union of their
     // contents, which the lanes rely on)
@@ -499,7 +514,7 @@ TEST(disjoint_gives_back_the_lanes_room) {
     for (const Disk &d : c)
       if (!loop.collision(d)) loop.insert(d);
     const std::size_t before = lanes_probe::laps();
-    tree.insert_disjoint(c, 2);
+    lanes_probe::insert_disjoint(tree, c, 2);
     CHECK(lanes_probe::laps() > before);
     const auto got = tree.memory(), want = loop.memory();
     note("BVH_SEED=" + std::to_string(seed) + " depth " + std::to_string(depth) + ": " +
@@ -525,7 +540,7 @@ TEST(disjoint_on_tiny_and_empty_inputs) {
   }
   // Threads 0: the hardware's.
   BVH<Disk> tree;
-  CHECK(tree.insert_disjoint({}).empty());
+  CHECK(lanes_probe::insert_disjoint(tree, std::vector<Disk>{}).empty());
   const std::vector<Disk> c = make.scene<Disk>(500, 20);
   BVH<Disk> loop;
   std::vector<std::size_t> want;
@@ -534,7 +549,7 @@ TEST(disjoint_on_tiny_and_empty_inputs) {
       loop.insert(c[i]);
       want.push_back(i);
     }
-  CHECK(tree.insert_disjoint(c) == want);
+  CHECK(lanes_probe::insert_disjoint(tree, c) == want);
   CHECK(fingerprint(tree) == fingerprint(loop));
 }
 
@@ -614,7 +629,7 @@ TEST(disjoint_rethrows_intersect_and_keeps_a_prefix) {
       BVH<fragile::Tagged> tree(3);
       bool thrown = false;
       try {
-        tree.insert_disjoint(c, threads);
+        lanes_probe::insert_disjoint(tree, c, threads);
       } catch (const fragile::Boom &) {
         thrown = true;
       }
@@ -634,7 +649,7 @@ TEST(disjoint_rethrows_intersect_and_keeps_a_prefix) {
       // One thread: exactly the loop up to the victim.
       if (threads == 1) CHECK(q == std::size_t(std::lower_bound(kept.begin(), kept.end(), victim) - kept.begin()));
       // The tree goes on as the loop would.
-      const std::vector<std::size_t> rest = tree.insert_disjoint(c, threads);
+      const std::vector<std::size_t> rest = lanes_probe::insert_disjoint(tree, c, threads);
       for (std::size_t i = 0; i < c.size(); ++i)
         if (!prefix.collision(c[i])) prefix.insert(c[i]);
       CHECK(fingerprint_tagged(tree) == fingerprint_tagged(prefix));
@@ -695,7 +710,7 @@ TEST(disjoint_rethrows_a_copy_in_the_lanes_and_holds_the_prefix) {
       }
   }
   for (int round = 0; round < 4; ++round) {
-    // A kept candidate well past the first BVH_DISJOINT_LANES_MIN kept: inserted by a lane.
+    // A kept candidate well past the first Tuning::disjoint_lanes_min kept: inserted by a lane.
     const std::size_t victim = kept[kept.size() / 2 + std::size_t(make.rng() % (kept.size() / 3))];
     for (unsigned threads : {2u, 3u, 8u}) {
       note("BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round) + " threads " +
@@ -705,7 +720,7 @@ TEST(disjoint_rethrows_a_copy_in_the_lanes_and_holds_the_prefix) {
       fragile::armed() = int(victim);
       bool thrown = false;
       try {
-        tree.insert_disjoint(c, threads);
+        lanes_probe::insert_disjoint(tree, c, threads);
       } catch (const fragile::CopyBoom &) {
         thrown = true;
       }
@@ -722,7 +737,7 @@ TEST(disjoint_rethrows_a_copy_in_the_lanes_and_holds_the_prefix) {
       std::sort(held.begin(), held.end());
       CHECK(held == want);
       // It goes on as the loop would: the rest of the kept ones join.
-      const std::vector<std::size_t> rest = tree.insert_disjoint(c, threads);
+      const std::vector<std::size_t> rest = lanes_probe::insert_disjoint(tree, c, threads);
       CHECK(rest.size() == kept.size() - want.size());
       CHECK(tree.validate());
     }
@@ -750,7 +765,7 @@ template <int W> void pipelined_insert_throws(unsigned seed) {
         }
     }
     if (kept.size() < 8) continue;
-    // A kept candidate past the first BVH_DISJOINT_INTERLEAVE_MIN: in a batch.
+    // A kept candidate past the first Tuning::disjoint_interleave_min: in a batch.
     const std::size_t victim = kept[kept.size() / 2 + std::size_t(make.rng() % (kept.size() / 3))];
     note("BVH_SEED=" + std::to_string(seed) + " width " + std::to_string(W) + " round " + std::to_string(round) +
          " poisoned " + std::to_string(victim));
@@ -760,7 +775,7 @@ template <int W> void pipelined_insert_throws(unsigned seed) {
     fragile::armed() = int(victim);
     bool thrown = false;
     try {
-      tree.insert_disjoint(c, 1);
+      lanes_probe::insert_disjoint(tree, c, 1);
     } catch (const fragile::CopyBoom &) {
       thrown = true;
     }
@@ -776,7 +791,7 @@ template <int W> void pipelined_insert_throws(unsigned seed) {
     };
     CHECK(order(tree) == order(loop));
     CHECK(tree.height() == loop.height() && tree.node_count() == loop.node_count());
-    const std::vector<std::size_t> rest = tree.insert_disjoint(c, 1);
+    const std::vector<std::size_t> rest = lanes_probe::insert_disjoint(tree, c, 1);
     for (std::size_t i = 0; i < c.size(); ++i)
       if (!loop.collision(c[i])) loop.insert(c[i]);
     CHECK(rest.size() == kept.size() - std::size_t(std::count_if(kept.begin(), kept.end(), [&](std::size_t i) { return i < victim; })));

@@ -3,13 +3,10 @@
 // scenes of every shape kind. validate() runs after every step of the
 // insert/erase sequences. Seeds are printed on failure (BVH_SEED changes
 // them; BVH_TEST_SCALE shrinks the runs for valgrind and the sanitizers).
-// Collision searches decide disks from their leaves' codes at every size
-// here (bvh.h's default starts at 4 MB of disks), so that the model tests
-// check those decisions (test_exceptions, test_lazy_handles and test_names
-// keep the default).
-#ifndef BVH_DISK_CODES_MIN_BYTES
-#define BVH_DISK_CODES_MIN_BYTES 0
-#endif
+// Collision searches of the wide trees decide disks from their leaves'
+// codes at every size here (codes_at_every_size, tests/check.h: the
+// library's default starts at 4 MB of disks), so that the model tests
+// check those decisions.
 
 #include <algorithm>
 #include <array>
@@ -99,6 +96,7 @@ template <class T, int W = 3> void churn_against_model(unsigned seed) {
     int split, depth;
     parameters(rng, split, depth);
     Tree<T, W> tree(split, depth);
+    codes_at_every_size(tree);
     std::vector<T> model;
     if (round % 2) { // start from a bulk build
       model = make.template scene<T>(int(rng() % 300), 40);
@@ -506,6 +504,7 @@ template <class T, int W = 3> void queries_against_brute_force(unsigned seed) {
     std::vector<T> shapes = make.template scene<T>(n, 30);
     if (n > 4) shapes[1] = shapes[0]; // a duplicate
     Tree<T, W> tree(split, depth);
+    codes_at_every_size(tree);
     if (round % 2)
       tree.construct(shapes);
     else
@@ -620,6 +619,7 @@ template <class T, int W = 3> void pairs_against_brute_force(unsigned seed, int 
     std::vector<T> shapes = make.template scene<T>(n, round % 2 ? 60 : 15);
     if (n > 3) shapes[2] = shapes[1];
     Tree<T, W> tree(split, depth);
+    codes_at_every_size(tree);
     if (round % 2)
       tree.construct(shapes);
     else
@@ -674,6 +674,7 @@ template <class T, int W = 3> void sah_build_against_brute_force(unsigned seed) 
     if (round >= 3) ++random_scenes;
     const std::vector<T> shapes = make.template scene<T>(n, 30);
     Tree<T, W> sah(split, depth), course(split, depth), grown(split, depth);
+    codes_at_every_size(sah); codes_at_every_size(course); codes_at_every_size(grown);
     sah.set_build_rule(Tree<T, W>::BuildRule::sah);
     grown.set_build_rule(Tree<T, W>::BuildRule::sah);
     sah.construct(shapes);
@@ -872,6 +873,7 @@ template <class T, int W> void iteration_both_ways(unsigned seed) {
     int split, depth;
     parameters(rng, split, depth);
     Tree<T, W> tree(split, depth);
+    codes_at_every_size(tree);
     const std::vector<T> shapes = make.template scene<T>(int(rng() % 250), 30);
     std::vector<typename Tree<T, W>::handle> handles;
     if (round % 2) {
@@ -943,6 +945,7 @@ template <class T, int W> void box_query_stops(unsigned seed) {
     Maker make(seed + unsigned(round));
     const std::vector<T> shapes = make.template scene<T>(int(make.rng() % 300), 40);
     Tree<T, W> tree(1 + int(make.rng() % 6));
+    codes_at_every_size(tree);
     tree.construct(shapes);
     for (int q = 0; q < 20; ++q) {
       const Point a(make.coord(-50, 1000), make.coord(-50, 1000));
@@ -980,6 +983,7 @@ template <class T, int W> void ties_by_smallest_handle(unsigned seed) {
       for (unsigned c = 1 + rng() % 2; c > 0; --c) shapes.push_back(shapes[i]);
     std::shuffle(shapes.begin(), shapes.end(), rng);
     Tree<T, W> tree(1 + int(rng() % 5));
+    codes_at_every_size(tree);
     if (round % 2) {
       for (const T &s : shapes) tree.insert(s);
     } else {
@@ -1088,6 +1092,7 @@ template <class T, int W> void bounds_are_the_union(unsigned seed) {
     Maker make(seed + unsigned(round));
     const std::vector<T> shapes = make.template scene<T>(int(make.rng() % 100), 50);
     Tree<T, W> tree(3);
+    codes_at_every_size(tree);
     CHECK(tree.bounds().empty());
     if (round % 2) tree.construct(shapes);
     else for (const T &s : shapes) tree.insert(s);
@@ -1167,6 +1172,7 @@ template <class T, int W> void overlap_iterator_by_hand(unsigned seed) {
     note(seed_note(seed, round, kind_at<T, W>()));
     Maker make(seed + unsigned(round));
     Tree<T, W> tree(1 + int(make.rng() % 6));
+    codes_at_every_size(tree);
     tree.construct(make.template scene<T>(int(make.rng() % 300), 40));
     for (int q = 0; q < 20; ++q) {
       T probe;

@@ -156,7 +156,7 @@ TEST(no_table_until_a_handle_is_used) {
       m.insert(d);
     }
     const std::vector<Disk> more = make.scene<Disk>(scaled(2000), 2);
-    const std::vector<std::size_t> kept = tree.insert_disjoint(more, 1 + unsigned(round));
+    const std::vector<std::size_t> kept = lanes_probe::insert_disjoint(tree, more, 1 + unsigned(round));
     CHECK(kept == model_disjoint(m, more));
     // Erases by iterator and by value give ids back, still without a table.
     for (int k = 0; k < scaled(300) && tree.size() > 1; ++k) {
@@ -251,7 +251,7 @@ void random_changes(unsigned seed, bool handles_late, int steps) {
       used = true;
     } else if (op < 28) {
       const std::vector<Disk> c = make.scene<Disk>(int(rng() % 60), 4);
-      const std::vector<std::size_t> kept = tree.insert_disjoint(c, 1 + rng() % 3);
+      const std::vector<std::size_t> kept = lanes_probe::insert_disjoint(tree, c, 1 + rng() % 3);
       CHECK(kept == model_disjoint(m, c));
     } else if (op < 29) {
       const std::vector<Disk> v = make.scene<Disk>(int(rng() % 200), 4);
@@ -318,7 +318,7 @@ TEST(ids_are_the_models_with_the_table_built_at_the_end) {
   for (unsigned k = 0; k < 6; ++k) random_changes(base_seed() + 9300 + k, true, scaled(1500));
 }
 
-/// insert_disjoint's lanes (a tree of at least BVH_DISJOINT_LANES_MIN
+/// insert_disjoint's lanes (a tree of at least the lowered Tuning::disjoint_lanes_min
 /// shapes, several threads) write the table from several threads when it is built, and
 /// skip it when not: the ids are the loop's either way.
 TEST(lanes_give_the_loops_ids_with_and_without_the_table) {
@@ -338,7 +338,7 @@ TEST(lanes_give_the_loops_ids_with_and_without_the_table) {
     };
     // (Scaled down to an eighth at most: the tree stays past the lanes' minimum.)
     const std::vector<Disk> start = small(std::max(750, scaled(6000)));
-    CHECK(tree.insert_disjoint(start, 2) == model_disjoint(m, start));
+    CHECK(lanes_probe::insert_disjoint(tree, start, 2) == model_disjoint(m, start));
     // Free ids in the middle, so that reused and fresh ids both go to lanes.
     for (int k = 0; k < std::max(40, scaled(300)); ++k) {
       auto it = tree.begin();
@@ -349,7 +349,7 @@ TEST(lanes_give_the_loops_ids_with_and_without_the_table) {
     if (built) CHECK(agrees(tree, m, &why));
     const std::vector<Disk> c = small(std::max(1000, scaled(8000)));
     const std::size_t lanes_before = lanes_probe::laps();
-    const std::vector<std::size_t> kept = tree.insert_disjoint(c, 2);
+    const std::vector<std::size_t> kept = lanes_probe::insert_disjoint(tree, c, 2);
     CHECK(lanes_probe::laps() > lanes_before);
     CHECK(kept == model_disjoint(m, c));
     CHECK_EQ(tree.memory().handles == 0, built == 0);

@@ -12,14 +12,9 @@
 // runs one suite as its own program would (its main: the seed line, its
 // cases, "N passed, M failed").
 //
-// The suites whose build defines macros that change bvh.h or that replace
-// operator new stay apart: test_disjoint and test_lazy_handles (one program
-// of their own, tests/lanes.cpp), test_names and test_exceptions.
-
-// Collision searches decide disks from their leaves' codes at every size
-// here (bvh.h's default starts at 4 MB of disks), so that the model tests
-// check those decisions (test_exceptions and test_names keep the default).
-#define BVH_DISK_CODES_MIN_BYTES 0
+// The suites that replace operator new or need their own build stay
+// apart: test_disjoint and test_lazy_handles (one program of their own,
+// tests/lanes.cpp), test_names and test_exceptions.
 
 // Every header a suite includes, here first, at global scope: inside the
 // namespaces below each #include is then a no-op (include guards).
@@ -51,6 +46,7 @@
 #include "check.h"
 #include <bvh/intersect.h>
 #include <bvh/scene.h>
+#include <bvh/generate.h>
 using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include "scenes.h"
 

@@ -441,14 +441,16 @@ public:
   /// a throw while several threads insert at once, it holds those shapes,
   /// but not in the loop's shape or with the loop's handles. A candidate
   /// outside the supported values throws std::invalid_argument naming the
-  /// first one, before anything is inserted.
-  std::vector<std::size_t> insert_disjoint(const std::vector<T> &candidates, unsigned threads = 0) {
+  /// first one, before anything is inserted. With `steps`, each step's
+  /// wall time is added to it (DisjointSteps); without, no clock is read.
+  std::vector<std::size_t> insert_disjoint(const std::vector<T> &candidates, unsigned threads = 0,
+                                           DisjointSteps *steps = nullptr) {
     detail::require_supported(core_.traits, candidates, "insert_disjoint", "candidates");
     struct Settle { // (the ids' room goes, also after a throw)
       detail::LeafStore<T> &leaves;
       ~Settle() { leaves.settle_ids(); }
     } settle{core_.leaves};
-    return detail::insert_disjoint(core_, candidates, threads);
+    return detail::insert_disjoint(core_, candidates, threads, steps);
   }
 
   /// True when `h` names a stored shape. The first lookup of any handle
@@ -561,11 +563,10 @@ public:
   /// answer. A tree starts with default_tuning(); copies and moves take
   /// the source's.
   using Tuning = detail::Tuning;
-  /// The defaults for T: disks decided from codes from 4 MB of shapes
-  /// (BVH_DISK_CODES_MIN_BYTES), insert_disjoint's interleaved searches
-  /// from 32,768 shapes, its lanes and parallel sweep from 4,096 (the
-  /// macros BVH_DISJOINT_INTERLEAVE_MIN, _LANES_MIN, _SWEEP_MIN; defining
-  /// one before bvh.h changes the default).
+  /// The defaults for T: disks decided from codes from 4 MB of shapes,
+  /// insert_disjoint's interleaved searches from 32,768 shapes, its lanes
+  /// and parallel sweep from 4,096, its lanes on threads by the tree's
+  /// shape (core.h: kDiskCodesMinBytes, kDisjointInterleaveMin, ...).
   static Tuning default_tuning() noexcept { return detail::default_tuning<T>(); }
   /// This tree's sizes from now on. Never throws; O(1).
   void set_tuning(const Tuning &t) noexcept { core_.tuning = t; }

@@ -29,25 +29,32 @@ enum class BuildRule {
 
 /// The sizes from which a tree takes the paths that pay only when it is
 /// large (BVH::Tuning, set_tuning()). They change speed only, never an
-/// answer: each path gives what the plain one gives.
+/// answer: each path gives what the plain one gives. A tree starts with
+/// default_tuning<T>() (below); tests lower the sizes through set_tuning(),
+/// as a user would, so that small trees take every path.
 struct Tuning {
   /// Stored shapes from which collision(), collisions() and query(shape)
   /// decide disks from their leaves' codes (kDisksFromCodes; default:
-  /// BVH_DISK_CODES_MIN_BYTES of shapes). 0: at every size.
+  /// kDiskCodesMinBytes of shapes). 0: at every size.
   std::size_t disk_codes_min_shapes;
   /// Stored shapes from which insert_disjoint's step 1 interleaves its
   /// searches, and one thread decides in batches (default
-  /// BVH_DISJOINT_INTERLEAVE_MIN).
+  /// kDisjointInterleaveMin).
   std::size_t disjoint_interleave_min;
   /// Stored shapes from which insert_disjoint's step 4 inserts on every
-  /// thread, the lanes (default BVH_DISJOINT_LANES_MIN).
+  /// thread, the lanes (default kDisjointLanesMin).
   std::size_t disjoint_lanes_min;
   /// A batch's survivors from which insert_disjoint's step 2 sweeps on
-  /// every thread (default BVH_DISJOINT_SWEEP_MIN).
+  /// every thread (default kDisjointSweepMin).
   std::size_t disjoint_sweep_min;
+  /// The fewest threads on which insert_disjoint's step 4 takes the lanes
+  /// (never fewer than 2); 0, the default: by the tree's shape
+  /// (disjoint_lanes_threads() in disjoint.h). With fewer threads the
+  /// driver inserts alone, pipelined, while steps 1 and 2 still run on
+  /// every thread.
+  unsigned disjoint_lanes_threads;
 };
-/// A tree of T's Tuning until set_tuning() (below, after the macros
-/// that set it).
+/// A tree of T's Tuning until set_tuning() (below).
 template <class T> Tuning default_tuning() noexcept;
 
 /// The state every operation shares: the nodes, the leaves' shapes and
@@ -156,53 +163,43 @@ template <class T, class Tr, int W> struct Core {
   }
 };
 
-/// The stored shapes' bytes from which they do by default
-/// (Tuning::disk_codes_min_shapes): a decision costs more than reading a
-/// disk the caches hold, and saves a miss only when the disks are many
-/// more than a core's own caches keep. Defining it before bvh.h changes
-/// the default only; set_tuning() changes a tree's.
-#ifndef BVH_DISK_CODES_MIN_BYTES
-#define BVH_DISK_CODES_MIN_BYTES (std::size_t(4) << 20)
+// The tuning macros of earlier versions changed template bodies, so two
+// translation units that defined them differently broke the one-definition
+// rule: they are gone, and defining one is an error that names the
+// replacement.
+#if defined(BVH_DISK_CODES_MIN_BYTES) || defined(BVH_DISJOINT_LANES_THREADS) || defined(BVH_DISJOINT_LANES_MIN) || \
+    defined(BVH_DISJOINT_SWEEP_MIN) || defined(BVH_DISJOINT_INTERLEAVE_MIN)
+#error "bvh: the BVH_DISK_CODES_MIN_BYTES and BVH_DISJOINT_* macros are gone: set a tree's sizes with BVH::set_tuning()"
 #endif
-/// The fewest threads on which insert_disjoint's step 4 takes the lanes
-/// (0: by the tree's shape, disjoint_lanes_threads(); never fewer than 2).
-/// With fewer, the driver inserts alone by the pipeline (insert_pipelined)
-/// while steps 1 and 2 still run on every thread.
-#ifndef BVH_DISJOINT_LANES_THREADS
-#define BVH_DISJOINT_LANES_THREADS 0
-#endif
-/// The size of tree from which insert_disjoint's step 4 inserts on every
-/// thread (the lanes) by default (Tuning::disjoint_lanes_min); a smaller
-/// tree is not worth splitting. Tests define it lower before bvh.h, so
-/// that small trees (and their runs under valgrind and the sanitizers)
-/// take the lanes too; set_tuning() changes one tree's.
-#ifndef BVH_DISJOINT_LANES_MIN
-#define BVH_DISJOINT_LANES_MIN 4096
-#endif
-/// The number of a batch's survivors from which step 2's sweep runs on
-/// every thread by default (Tuning::disjoint_sweep_min; lowered by the
-/// tests, as BVH_DISJOINT_LANES_MIN).
-#ifndef BVH_DISJOINT_SWEEP_MIN
-#define BVH_DISJOINT_SWEEP_MIN 4096
+#if defined(BVH_DISJOINT_PROFILE) || defined(BVH_DISJOINT_PROFILE_ON)
+#error "bvh: BVH_DISJOINT_PROFILE is gone: pass a bvh::DisjointSteps to insert_disjoint() for its step timings"
 #endif
 
+/// The stored shapes' bytes from which collision searches decide disks
+/// from their codes by default: a decision costs more than reading a disk
+/// the caches hold, and saves a miss only when the disks are many more
+/// than a core's own caches keep.
+constexpr std::size_t kDiskCodesMinBytes = std::size_t(4) << 20;
+/// The size of tree from which insert_disjoint's step 4 inserts on every
+/// thread (the lanes) by default; a smaller tree is not worth splitting.
+constexpr std::size_t kDisjointLanesMin = 4096;
+/// The number of a batch's survivors from which step 2's sweep runs on
+/// every thread by default.
+constexpr std::size_t kDisjointSweepMin = 4096;
 /// The size of tree from which insert_disjoint's step 1 interleaves its
 /// searches (collides_each), and from which one thread decides in batches
 /// at all: on a smaller tree, which the caches hold, the interleaving and
 /// the batches cost more than they save, and one thread runs the loop
-/// itself. The default of Tuning::disjoint_interleave_min; tests define it
-/// lower, as BVH_DISJOINT_LANES_MIN.
-#ifndef BVH_DISJOINT_INTERLEAVE_MIN
-#define BVH_DISJOINT_INTERLEAVE_MIN 32768
-#endif
+/// itself.
+constexpr std::size_t kDisjointInterleaveMin = 32768;
 
-/// The macros above and BVH_DISK_CODES_MIN_BYTES set only these defaults.
 template <class T> Tuning default_tuning() noexcept {
   Tuning t;
-  t.disk_codes_min_shapes = std::size_t(BVH_DISK_CODES_MIN_BYTES) / sizeof(T);
-  t.disjoint_interleave_min = BVH_DISJOINT_INTERLEAVE_MIN;
-  t.disjoint_lanes_min = BVH_DISJOINT_LANES_MIN;
-  t.disjoint_sweep_min = BVH_DISJOINT_SWEEP_MIN;
+  t.disk_codes_min_shapes = kDiskCodesMinBytes / sizeof(T);
+  t.disjoint_interleave_min = kDisjointInterleaveMin;
+  t.disjoint_lanes_min = kDisjointLanesMin;
+  t.disjoint_sweep_min = kDisjointSweepMin;
+  t.disjoint_lanes_threads = 0;
   return t;
 }
 } // namespace detail

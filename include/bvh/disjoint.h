@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <ctime>
 #include <cstring>
 #include <exception>
 #include <limits>
@@ -57,33 +58,48 @@ namespace detail {
 // batches (Crew), so a batch never waits for a thread to start or for one
 // the system has not yet woken.
 
-/// Step timings of insert_disjoint, for bench/bench.cpp's serial-fraction
-/// figures: compiled in only when BVH_DISJOINT_PROFILE names a function
-/// void(int step, double seconds) declared before bvh.h (step 1 and 2: the
-/// parallel steps, 3: the serial one, 0: the rest, i.e. gathering
-/// survivors and the sweep's sort). When BVH_DISJOINT_PROFILE_ON is defined
-/// too, as an expression, a call whose value is false reads no clock: a
-/// program that times some calls and profiles others does not pay for the
-/// clock in the calls it times (a clock read per batch is a visible part
-/// of a call on a virtual machine, where reading the CPU-time clock is a
-/// system call).
+} // namespace detail
+
+/// Where a call of insert_disjoint spent its time, when one is passed to
+/// it (BVH::insert_disjoint's `steps`): seconds[s] adds the wall time of
+/// each lap of step s, cpu_seconds[s] the process's CPU time in it (every
+/// thread's: std::clock), and laps[s] counts the laps (1 and 2: the parallel
+/// steps, 3: the serial decisions and inserts, 4: the lanes' inserts, 0:
+/// the rest, i.e. gathering survivors and the sweep's sort). A call
+/// passed none reads no clock: reading it once a batch is a visible part
+/// of a call on a virtual machine, where the clock is a system call.
+/// bench/bench.cpp's serial-fraction figures come from here; the tests
+/// read laps[4] to know that the lanes ran.
+struct DisjointSteps {
+  double seconds[5] = {0, 0, 0, 0, 0};
+  double cpu_seconds[5] = {0, 0, 0, 0, 0};
+  std::size_t laps[5] = {0, 0, 0, 0, 0};
+};
+
+namespace detail {
+
+/// insert_disjoint's laps into a DisjointSteps, or nothing without one.
+/// Only the driver thread laps.
 struct DisjointClock {
-#ifdef BVH_DISJOINT_PROFILE
-#ifdef BVH_DISJOINT_PROFILE_ON
-  bool on = bool(BVH_DISJOINT_PROFILE_ON);
-#else
-  bool on = true;
-#endif
-  std::chrono::steady_clock::time_point last = on ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point();
-  void lap(int step) {
-    if (!on) return;
-    const auto now = std::chrono::steady_clock::now();
-    BVH_DISJOINT_PROFILE(step, std::chrono::duration<double>(now - last).count());
-    last = now;
+  explicit DisjointClock(DisjointSteps *to) : steps(to) {
+    if (steps) {
+      last = std::chrono::steady_clock::now();
+      last_cpu = std::clock();
+    }
   }
-#else
-  void lap(int) {}
-#endif
+  void lap(int step) {
+    if (!steps) return;
+    const auto now = std::chrono::steady_clock::now();
+    const std::clock_t cpu = std::clock();
+    steps->seconds[step] += std::chrono::duration<double>(now - last).count();
+    steps->cpu_seconds[step] += double(cpu - last_cpu) / CLOCKS_PER_SEC;
+    ++steps->laps[step];
+    last = now;
+    last_cpu = cpu;
+  }
+  DisjointSteps *steps;
+  std::chrono::steady_clock::time_point last;
+  std::clock_t last_cpu = 0;
 };
 
 /// BVH::insert's id handling around insert_shape: the next id, given back
@@ -450,8 +466,9 @@ template <class T, class Tr, int W>
 /// on a wide tree of large leaves, a few levels deep, one pipelined thread
 /// inserts faster than two lanes, which each descend one insertion at a
 /// time behind the driver's routing (docs/performance.txt, NODE WIDTH).
-template <int W> constexpr unsigned disjoint_lanes_threads(int split_threshold) {
-  if (BVH_DISJOINT_LANES_THREADS > 0) return std::max(2u, unsigned(BVH_DISJOINT_LANES_THREADS));
+/// `at_least` (Tuning::disjoint_lanes_threads), when not 0, overrides it.
+template <int W> constexpr unsigned disjoint_lanes_threads(int split_threshold, unsigned at_least = 0) {
+  if (at_least > 0) return std::max(2u, at_least);
   return W > kCourseWidth && split_threshold >= 16 ? 3u : 2u;
 }
 
@@ -476,7 +493,7 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
                      unsigned threads, Crew &crew, DisjointClock &clock, std::vector<std::size_t> &kept) {
   const std::size_t lanes_min = core.tuning.disjoint_lanes_min; // a smaller tree: serially
   NodeStore<W> &nodes = core.nodes;
-  const bool lanes_pay = threads >= disjoint_lanes_threads<W>(core.split_threshold);
+  const bool lanes_pay = threads >= disjoint_lanes_threads<W>(core.split_threshold, core.tuning.disjoint_lanes_threads);
   if (!lanes_pay && core.margin == 0 && core.root >= 0 && !nodes.node(core.root).is_leaf()) {
     insert_pipelined(core, candidates, keep, 0, kept);
     clock.lap(3);
@@ -616,7 +633,7 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
 /// The batches of insert_disjoint (run by the crew's driver).
 template <class T, class Tr, int W>
 void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candidates, unsigned threads, Crew &crew,
-                             std::vector<std::size_t> &kept) {
+                             std::vector<std::size_t> &kept, DisjointSteps *steps) {
   const std::size_t n = candidates.size();
   // Batch sizes: starting small (on an empty tree all of the first batch
   // survives), within [kMin, kMax]; step 2 runs from kPairwise survivors.
@@ -636,7 +653,7 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
   std::vector<std::size_t> survivors, keep;
   std::vector<unsigned char> survivor_kept;
   KeptBoxes kept_boxes; // keep[i]'s box, rounded once
-  DisjointClock clock;
+  DisjointClock clock(steps);
   const std::size_t interleave_min = core.tuning.disjoint_interleave_min;
   for (std::size_t start = 0; start < n;) {
     if (serial && core.size < interleave_min) { // the loop itself
@@ -722,13 +739,14 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
 /// after a throw in a lane, in another shape and with other ids than the
 /// loop's (finish_failed_lanes).
 template <class T, class Tr, int W>
-std::vector<std::size_t> insert_disjoint(Core<T, Tr, W> &core, const std::vector<T> &candidates, unsigned threads) {
+std::vector<std::size_t> insert_disjoint(Core<T, Tr, W> &core, const std::vector<T> &candidates, unsigned threads,
+                                         DisjointSteps *steps = nullptr) {
   std::vector<std::size_t> kept;
   threads = threads_for(threads);
   if (candidates.empty()) return kept;
   if (threads == 1) {
     Crew crew; // (no helper: the driver runs every chunk)
-    insert_disjoint_batches(core, candidates, 1, crew, kept);
+    insert_disjoint_batches(core, candidates, 1, crew, kept, steps);
     return kept;
   }
   // The first thread to arrive drives, the others help until it is done
@@ -754,7 +772,7 @@ std::vector<std::size_t> insert_disjoint(Core<T, Tr, W> &core, const std::vector
       Crew &crew;
       ~Finish() { crew.finish(); }
     } finish{crew};
-    insert_disjoint_batches(core, candidates, threads, crew, kept);
+    insert_disjoint_batches(core, candidates, threads, crew, kept, steps);
   });
   return kept;
 }

@@ -93,9 +93,6 @@ template <class T, class Tr, int W> BVH_ALWAYS_INLINE void extend_summary(Core<T
       leaf.set_codes(count - 1, codes);
       leaf.set_coded(count);
     } else {
-#ifdef BVH_COUNT_SUMMARIES
-      ++bvh_summaries_redone;
-#endif
       make_summary(core, n);
     }
   }

@@ -14,6 +14,17 @@
 namespace bvh {
 namespace detail {
 
+/// Four copies of one float, 16-byte aligned: a probe's bound as the SSE2
+/// node test loads it (get()) and the scalar one reads it (f[0]). One
+/// layout, whichever test a build compiles (BVH_NO_SIMD).
+struct alignas(16) Float4 {
+  float f[4];
+  static Float4 of(float v) { return Float4{{v, v, v, v}}; }
+#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
+  __m128 get() const { return _mm_load_ps(f); }
+#endif
+};
+
 /// A query box rounded outwards to float, and its centre, as child_masks
 /// reads them.
 struct Probe {
@@ -26,17 +37,11 @@ struct Probe {
     round_out(box, f);
     return Probe(f[0], f[1], f[2], f[3], 0.5f * (f[0] + f[2]), 0.5f * (f[1] + f[3]));
   }
-#if defined(__SSE2__) && !defined(BVH_NO_SIMD)
   // Broadcast to 4 lanes once per query, not once per node.
   Probe(float lx, float ly, float hx, float hy, float mx, float my)
-      : lo_x(_mm_set1_ps(lx)), lo_y(_mm_set1_ps(ly)), hi_x(_mm_set1_ps(hx)), hi_y(_mm_set1_ps(hy)),
-        mid_x(_mm_set1_ps(mx)), mid_y(_mm_set1_ps(my)) {}
-  __m128 lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
-#else
-  Probe(float lx, float ly, float hx, float hy, float mx, float my)
-      : lo_x(lx), lo_y(ly), hi_x(hx), hi_y(hy), mid_x(mx), mid_y(my) {}
-  float lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
-#endif
+      : lo_x(Float4::of(lx)), lo_y(Float4::of(ly)), hi_x(Float4::of(hx)), hi_y(Float4::of(hy)),
+        mid_x(Float4::of(mx)), mid_y(Float4::of(my)) {}
+  Float4 lo_x, lo_y, hi_x, hi_y, mid_x, mid_y;
 };
 
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)

@@ -30,23 +30,23 @@ BVH_ALWAYS_INLINE void child_masks(const Node<W> &node, const Probe &p, unsigned
   for (int g = 0; g < W; g += 4) {
     const __m128 lx = _mm_loadu_ps(node.lo_x + g), ly = _mm_loadu_ps(node.lo_y + g);
     const __m128 hx = _mm_loadu_ps(node.hi_x + g), hy = _mm_loadu_ps(node.hi_y + g);
-    const __m128 meets = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.hi_x), _mm_cmple_ps(p.lo_x, hx)),
-                                    _mm_and_ps(_mm_cmple_ps(ly, p.hi_y), _mm_cmple_ps(p.lo_y, hy)));
+    const __m128 meets = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.hi_x.get()), _mm_cmple_ps(p.lo_x.get(), hx)),
+                                    _mm_and_ps(_mm_cmple_ps(ly, p.hi_y.get()), _mm_cmple_ps(p.lo_y.get(), hy)));
     hits |= unsigned(_mm_movemask_ps(meets)) << g;
     if constexpr (kNear) {
-      const __m128 holds = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.mid_x), _mm_cmple_ps(p.mid_x, hx)),
-                                      _mm_and_ps(_mm_cmple_ps(ly, p.mid_y), _mm_cmple_ps(p.mid_y, hy)));
+      const __m128 holds = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(lx, p.mid_x.get()), _mm_cmple_ps(p.mid_x.get(), hx)),
+                                      _mm_and_ps(_mm_cmple_ps(ly, p.mid_y.get()), _mm_cmple_ps(p.mid_y.get(), hy)));
       near |= unsigned(_mm_movemask_ps(holds)) << g;
     }
   }
 #else
   for (int c = 0; c < W; ++c) {
-    hits |= unsigned((node.lo_x[c] <= p.hi_x) & (p.lo_x <= node.hi_x[c]) & (node.lo_y[c] <= p.hi_y) &
-                     (p.lo_y <= node.hi_y[c]))
+    hits |= unsigned((node.lo_x[c] <= p.hi_x.f[0]) & (p.lo_x.f[0] <= node.hi_x[c]) & (node.lo_y[c] <= p.hi_y.f[0]) &
+                     (p.lo_y.f[0] <= node.hi_y[c]))
             << c;
     if constexpr (kNear)
-      near |= unsigned((node.lo_x[c] <= p.mid_x) & (p.mid_x <= node.hi_x[c]) & (node.lo_y[c] <= p.mid_y) &
-                       (p.mid_y <= node.hi_y[c]))
+      near |= unsigned((node.lo_x[c] <= p.mid_x.f[0]) & (p.mid_x.f[0] <= node.hi_x[c]) & (node.lo_y[c] <= p.mid_y.f[0]) &
+                       (p.mid_y.f[0] <= node.hi_y[c]))
               << c;
   }
 #endif
