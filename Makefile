@@ -70,8 +70,22 @@ EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.c
 
 all: bvh.out
 
-bvh.out: main.cpp $(HEADERS)
-	$(CXX) $(CXXFLAGS) -Iinclude main.cpp -o $@
+# bvh.out: main.cpp and cli/ (cli/cli.h names the parts), compiled one file
+# at a time into $(BUILD)/cli/ and linked: its trees are two translation
+# units of about the same size, two shape kinds each
+# (cli/run_disks_triangles.cpp, cli/run_quads_shapes.cpp), which make -j
+# compiles side by side (first). CLI_COURSE: the parts of a build with the
+# course's width 3 alone (cli/course_width.cpp instead of cli/widths.cpp
+# and those two).
+CLI_COMMON := main cli/options cli/progress
+CLI_ALL := cli/run_quads_shapes cli/run_disks_triangles $(CLI_COMMON) cli/widths
+CLI_COURSE := cli/course_width $(CLI_COMMON)
+CLI_HEADERS := cli/cli.h cli/progress.h
+bvh.out: $(CLI_ALL:%=$(BUILD)/cli/%.o)
+	$(CXX) $(CXXFLAGS) $^ -o $@
+$(BUILD)/cli/%.o: %.cpp cli/run.h $(CLI_HEADERS) $(HEADERS)
+	@mkdir -p $(@D)
+	$(CXX) $(CXXFLAGS) -Iinclude -c $< -o $@
 
 # The unit suites at make check's -Og (UNIT_CXXFLAGS): they test behaviour
 # at their full rounds in a few seconds either way, and -Og compiles in about
@@ -111,10 +125,13 @@ $(BUILD)/test_lanes_san: $(LANES_SOURCES) | $(BUILD)
 	$(SAN_CXX) $(SANITIZE) -Iinclude -Itests $< -o $@
 
 # The sanitized CLI runs the command-line cases, all at the course's width
-# 3: -DBVH_CLI_COURSE_WIDTH_ONLY compiles that width alone (half the
-# compile; --width 2, 4 or 8 is then a usage error).
-$(BUILD)/bvh_san.out: main.cpp $(HEADERS) | $(BUILD)
-	$(SAN_CXX) $(SANITIZE) -DBVH_CLI_COURSE_WIDTH_ONLY -Iinclude main.cpp -o $@
+# 3: it is built of CLI_COURSE, that width alone (half the compile;
+# --width 2, 4 or 8 is then an error).
+$(BUILD)/bvh_san.out: $(CLI_COURSE:%=$(BUILD)/cli_san/%.o)
+	$(SAN_CXX) $(SANITIZE) $^ -o $@
+$(BUILD)/cli_san/%.o: %.cpp cli/run.h $(CLI_HEADERS) $(HEADERS)
+	@mkdir -p $(@D)
+	$(SAN_CXX) $(SANITIZE) -Iinclude -c $< -o $@
 
 # test_asserts and the examples at -O0: they run in a second or two (each
 # assert case in milliseconds) either way, and -O0 compiles them at least
@@ -212,11 +229,11 @@ course-check:
 FUZZ_SECONDS ?= 60
 FUZZ_CXX ?= clang++
 FUZZ_FLAGS := -std=c++17 -g1 -Wall -Wextra -pedantic -fsanitize=fuzzer,address,undefined \
-  -fno-sanitize-recover=all -DBVH_NO_MAIN -Iinclude
-$(BUILD)/fuzz_parser: tests/fuzz_parser.cpp main.cpp $(HEADERS) | $(BUILD)
-	$(FUZZ_CXX) -O1 $(FUZZ_FLAGS) $< main.cpp -o $@
-$(BUILD)/fuzz_parser_O0: tests/fuzz_parser.cpp main.cpp $(HEADERS) | $(BUILD)
-	$(FUZZ_CXX) -O0 $(FUZZ_FLAGS) $< main.cpp -o $@
+  -fno-sanitize-recover=all -Iinclude
+$(BUILD)/fuzz_parser: tests/fuzz_parser.cpp cli/options.cpp $(CLI_HEADERS) $(HEADERS) | $(BUILD)
+	$(FUZZ_CXX) -O1 $(FUZZ_FLAGS) $< cli/options.cpp -o $@
+$(BUILD)/fuzz_parser_O0: tests/fuzz_parser.cpp cli/options.cpp $(CLI_HEADERS) $(HEADERS) | $(BUILD)
+	$(FUZZ_CXX) -O0 $(FUZZ_FLAGS) $< cli/options.cpp -o $@
 
 fuzz: $(BUILD)/fuzz_parser
 	mkdir -p $(BUILD)/fuzz-work
