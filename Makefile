@@ -68,7 +68,12 @@ EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.c
 .PHONY: bench-edition
 .PHONY: all check check-build course-check test test-build test-build-longest test-build-gcc test-build-san demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions bench-disjoint bench-widths
 
-all: bvh.out
+# make (all): bvh.out, its translation units compiled JOBS at a time (one
+# a core) unless a -j was given (then as that says; make bvh.out: as make
+# is told).
+all:
+	+@case " $(MAKEFLAGS) " in *" -j"*|*jobserver*) $(MAKE) --no-print-directory bvh.out ;; \
+	  *) $(MAKE) --no-print-directory -j$(JOBS) bvh.out ;; esac
 
 # bvh.out: main.cpp and cli/ (cli/cli.h names the parts), compiled one file
 # at a time into $(BUILD)/cli/ and linked: its trees are two translation
@@ -169,17 +174,23 @@ $(BUILD)/check:
 	mkdir -p $@
 
 # What make test compiles: the sanitizer builds (by SAN_CXX), g++'s builds
-# and the fuzzer (clang++ only). tests/run.sh builds them all at once with
-# -j$(JOBS) -k, then runs the layers.
-# (Longest compiles first, so that -j ends on short ones. tests/run.sh runs
-# two makes: test-build-longest, bvh.out and the unit suites that the
-# valgrind layer runs (test_names is not one of them), so that the layer
-# starts beside the second make, of everything else.)
+# and the fuzzer (clang++ only). tests/run.sh builds them all in one make
+# -j$(JOBS) -k, the longest compiles first, so that -j ends on short ones,
+# and first the programs of the valgrind layer (the run's longest chain of
+# work), each group marked when built ($(BUILD)/ready-*): the layer's two
+# streams start beside the rest of the build as soon as their programs
+# are there.
 LONGEST := bvh.out $(BUILD)/test_units $(BUILD)/test_lanes $(BUILD)/test_exceptions
 test-build-longest: $(LONGEST)
 test-build-san: $(SAN_TESTS)
 test-build-gcc: $(TESTS) $(TSAN_TESTS) bvh.out $(ASSERT_TESTS) $(EXAMPLES)
 test-build: test-build-longest $(BUILD)/bvh_san.out test-build-san test-build-gcc $(BUILD)/fuzz_parser_O0
+$(BUILD)/ready-units: $(BUILD)/test_units
+	@touch $@
+$(BUILD)/ready-lanes: $(BUILD)/test_lanes $(BUILD)/test_exceptions
+	@touch $@
+$(BUILD)/ready-cli: bvh.out | $(BUILD)
+	@touch $@
 
 # Every test; ends with "N passed, M failed" and fails when M > 0. The
 # build runs with -j$(JOBS) and so do the independent layers of tests/run.sh.
