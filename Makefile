@@ -68,6 +68,10 @@ EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.c
 .PHONY: bench-edition
 .PHONY: all check check-build course-check test test-build test-build-longest test-build-gcc test-build-san demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions bench-disjoint bench-widths
 
+# $(BUILD)/NAME.built: the program NAME is linked (tests/run.sh's valgrind
+# layer waits for it; see test-build below).
+BUILT_MARK = @mkdir -p $(BUILD) && touch $(BUILD)/$(@F).built
+
 # make (all): bvh.out, its translation units compiled JOBS at a time (one
 # a core) unless a -j was given (then as that says; make bvh.out: as make
 # is told).
@@ -88,6 +92,7 @@ CLI_COURSE := cli/course_width $(CLI_COMMON)
 CLI_HEADERS := cli/cli.h cli/progress.h
 bvh.out: $(CLI_ALL:%=$(BUILD)/cli/%.o)
 	$(CXX) $(CXXFLAGS) $^ -o $@
+	$(BUILT_MARK)
 $(BUILD)/cli/%.o: %.cpp cli/run.h $(CLI_HEADERS) $(HEADERS)
 	@mkdir -p $(@D)
 	$(CXX) $(CXXFLAGS) -Iinclude -c $< -o $@
@@ -106,6 +111,7 @@ $(BUILD)/test_%_san: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 
 $(BUILD)/test_exceptions: tests/test_exceptions.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -std=c++20 -Iinclude -Itests $< -o $@
+	$(BUILT_MARK)
 
 # The two editions against each other: the course's (the top-level bvh.h,
 # "bvh.h" through -I.) and the engine (<bvh/bvh.h> through -Iinclude).
@@ -119,12 +125,14 @@ $(BUILD)/check/test_editions: $(EDITIONS_SOURCES) | $(BUILD)/check
 
 $(BUILD)/test_units: $(UNITY_SOURCES) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -Iinclude -Itests $< -o $@
+	$(BUILT_MARK)
 
 $(BUILD)/test_units_san: $(UNITY_SOURCES) | $(BUILD)
 	$(SAN_CXX) $(SANITIZE) $(UNITS_SAN_FLAGS) -Iinclude -Itests $< -o $@
 
 $(BUILD)/test_lanes: $(LANES_SOURCES) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -Iinclude -Itests $< -o $@
+	$(BUILT_MARK)
 
 $(BUILD)/test_lanes_san: $(LANES_SOURCES) | $(BUILD)
 	$(SAN_CXX) $(SANITIZE) -Iinclude -Itests $< -o $@
@@ -177,20 +185,15 @@ $(BUILD)/check:
 # and the fuzzer (clang++ only). tests/run.sh builds them all in one make
 # -j$(JOBS) -k, the longest compiles first, so that -j ends on short ones,
 # and first the programs of the valgrind layer (the run's longest chain of
-# work), each group marked when built ($(BUILD)/ready-*): the layer's two
-# streams start beside the rest of the build as soon as their programs
-# are there.
+# work): each of them, once linked, is marked $(BUILD)/NAME.built
+# (BUILT_MARK), and the layer's two streams start beside the rest of the
+# build as soon as their programs are there. (A marker target of its own
+# would wait for a free job slot, a whole compile.)
 LONGEST := bvh.out $(BUILD)/test_units $(BUILD)/test_lanes $(BUILD)/test_exceptions
 test-build-longest: $(LONGEST)
 test-build-san: $(SAN_TESTS)
 test-build-gcc: $(TESTS) $(TSAN_TESTS) bvh.out $(ASSERT_TESTS) $(EXAMPLES)
 test-build: test-build-longest $(BUILD)/bvh_san.out test-build-san test-build-gcc $(BUILD)/fuzz_parser_O0
-$(BUILD)/ready-units: $(BUILD)/test_units
-	@touch $@
-$(BUILD)/ready-lanes: $(BUILD)/test_lanes $(BUILD)/test_exceptions
-	@touch $@
-$(BUILD)/ready-cli: bvh.out | $(BUILD)
-	@touch $@
 
 # Every test; ends with "N passed, M failed" and fails when M > 0. The
 # build runs with -j$(JOBS) and so do the independent layers of tests/run.sh.

@@ -498,24 +498,27 @@ cli_threads() {
 
 # valgrind memcheck: unit tests and a bulk, an incremental and a discard run.
 # Two streams side by side, each starting as soon as its programs are built
-# (the build marks them: the Makefile's $(BUILD)/ready-*): the suites of
-# build/test_units, then bvh.out's runs; and those of build/test_lanes and
+# (the build marks each: $BUILD/NAME.built): the suites of build/test_units,
+# then bvh.out's runs; and those of build/test_lanes and
 # build/test_exceptions. The layer is the run's longest chain of work: one
 # stream after the other would end it well after everything else.
 VG=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=all --show-leak-kinds=all)
-# Waits until the build has made FILE (a ready-* marker) or has ended.
+# Waits until the build has made each program NAME ($BUILD/NAME.built) or has ended.
 wait_built() {
-  while [ ! -f "$1" ] && [ ! -f "$RESULTS/build-ended" ]; do pause; done
+  local name
+  for name in "$@"; do
+    while [ ! -f "$BUILD/$name.built" ] && [ ! -f "$RESULTS/build-ended" ]; do pause; done
+  done
 }
 valgrind_units() {
-  wait_built "$BUILD/ready-units"
+  wait_built test_units
   BVH_TEST_SCALE=0.03 run_suite valgrind_test_bvh "${VG[@]}" "$BUILD/test_units" bvh
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_threads "${VG[@]}" "$BUILD/test_units" threads
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_units" intersect
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_units" dynamic
   BVH_TEST_SCALE=0.15 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_units" moving
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_units" parse
-  wait_built "$BUILD/ready-cli"
+  wait_built bvh.out
   run_case valgrind_bulk_build "${VG[@]}" ./bvh.out -i inputs/gen_1000.triangles -o "$OUT/vg_bulk.html" \
     --depth_limit 4 --visualize --print_tree
   run_case valgrind_incremental "${VG[@]}" ./bvh.out -i inputs/gen_1000.quads -o "$OUT/vg_incremental.html" \
@@ -527,7 +530,7 @@ valgrind_units() {
     --depth_limit 6 --incremental --discard_overlap --visualize --print_tree --pairs
 }
 valgrind_lanes() {
-  wait_built "$BUILD/ready-lanes"
+  wait_built test_lanes test_exceptions
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lanes" lazy_handles
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_lanes" disjoint
   # (nouserintercepts: the test's own operator new, which injects the faults, stays in place)
@@ -596,17 +599,20 @@ if [ "$QUICK" = no ] && ! have clang++; then
     tee "$RESULTS/build_notices.txt"
 fi
 # One make, the longest compiles first, so that -j ends on short ones;
-# first the programs the valgrind layer runs, each group marked when built
-# (the Makefile's $(BUILD)/ready-units, ready-lanes, ready-cli): the
-# layer's two streams, the run's longest chain of work, start beside the
-# rest of the build as soon as their programs are there.
+# first the programs the valgrind layer runs, each marked when linked
+# ($BUILD/NAME.built; marked here already when up to date): the layer's two
+# streams, the run's longest chain of work, start beside the rest of the
+# build as soon as their programs are there.
 targets=()
 if [ "$QUICK" = yes ]; then
   rm -f "$BUILD"/check/test_*.out # make runs each unit test again
   targets+=(check-build)
 else
-  rm -f "$BUILD/ready-units" "$BUILD/ready-lanes" "$BUILD/ready-cli"
-  targets+=("$BUILD/ready-units" "$BUILD/ready-lanes" "$BUILD/ready-cli" "$BUILD/bvh_san.out")
+  for prog in "$BUILD/test_units" "$BUILD/test_lanes" "$BUILD/test_exceptions" bvh.out; do
+    rm -f "$BUILD/${prog##*/}.built"
+    if $MAKE --no-print-directory -q "$prog" 2>/dev/null; then : >"$BUILD/${prog##*/}.built"; fi
+  done
+  targets+=("$BUILD/test_units" "$BUILD/test_lanes" "$BUILD/test_exceptions" bvh.out "$BUILD/bvh_san.out")
   [ "$HAVE_FUZZER" = yes ] && targets+=("$BUILD/fuzz_parser_O0")
   targets+=(test-build-san test-build-gcc)
 fi
@@ -647,7 +653,7 @@ make_pid=$!
 last=$SECONDS
 while kill -0 "$make_pid" 2>/dev/null; do
   pause
-  if [ "$VALGRIND_EARLY" = no ] && [ "$QUICK" = no ] && { [ -f "$BUILD/ready-units" ] || [ -f "$BUILD/ready-lanes" ]; }; then
+  if [ "$VALGRIND_EARLY" = no ] && [ "$QUICK" = no ] && { [ -f "$BUILD/test_units.built" ] || [ -f "$BUILD/test_lanes.built" ]; }; then
     VALGRIND_EARLY=yes
     echo "   (the first unit suites are built: valgrind starts beside the rest of the build, $((SECONDS - build_start)) s)"
     layer valgrind valgrind_layer
