@@ -530,9 +530,10 @@ valgrind_units() {
     --depth_limit 6 --incremental --discard_overlap --visualize --print_tree --pairs
 }
 valgrind_lanes() {
-  wait_built test_lanes test_exceptions
+  wait_built test_lanes
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lanes" lazy_handles
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_lanes" disjoint
+  wait_built test_exceptions
   # (nouserintercepts: the test's own operator new, which injects the faults, stays in place)
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_exceptions "${VG[@]}" --soname-synonyms=somalloc=nouserintercepts \
     "$BUILD/test_exceptions"
