@@ -500,8 +500,8 @@ cli_threads() {
 # Two streams side by side, each starting as soon as its programs are built
 # (the build marks each: $BUILD/NAME.built): the suites of build/test_units,
 # then bvh.out's runs; and those of build/test_lanes and
-# build/test_exceptions. The layer is the run's longest chain of work: one
-# stream after the other would end it well after everything else.
+# build/test_exceptions. The layer is the run's longest chain of work: in
+# one stream, it would end after everything else.
 VG=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=all --show-leak-kinds=all)
 # Waits until the build has made each program NAME ($BUILD/NAME.built) or has ended.
 wait_built() {
