@@ -68,10 +68,34 @@ EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.c
 .PHONY: bench-edition
 .PHONY: all check check-build course-check test test-build test-build-longest test-build-gcc test-build-san demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions bench-disjoint bench-widths
 
-all: bvh.out
+# $(BUILD)/NAME.built: the program NAME is linked (tests/run.sh's valgrind
+# layer waits for it; see test-build below).
+BUILT_MARK = @mkdir -p $(BUILD) && touch $(BUILD)/$(@F).built
 
-bvh.out: main.cpp $(HEADERS)
-	$(CXX) $(CXXFLAGS) -Iinclude main.cpp -o $@
+# make (all): bvh.out, its translation units compiled JOBS at a time (one
+# a core) unless a -j was given (then as that says; make bvh.out: as make
+# is told).
+all:
+	+@case " $(MAKEFLAGS) " in *" -j"*|*jobserver*) $(MAKE) --no-print-directory bvh.out ;; \
+	  *) $(MAKE) --no-print-directory -j$(JOBS) bvh.out ;; esac
+
+# bvh.out: main.cpp and cli/ (cli/cli.h names the parts), compiled one file
+# at a time into $(BUILD)/cli/ and linked: its trees are two translation
+# units of about the same size, two shape kinds each
+# (cli/run_disks_triangles.cpp, cli/run_quads_shapes.cpp), which make -j
+# compiles side by side (first). CLI_COURSE: the parts of a build with the
+# course's width 3 alone (cli/course_width.cpp instead of cli/widths.cpp
+# and those two).
+CLI_COMMON := main cli/options cli/progress
+CLI_ALL := cli/run_quads_shapes cli/run_disks_triangles $(CLI_COMMON) cli/widths
+CLI_COURSE := cli/course_width $(CLI_COMMON)
+CLI_HEADERS := cli/cli.h cli/progress.h
+bvh.out: $(CLI_ALL:%=$(BUILD)/cli/%.o)
+	$(CXX) $(CXXFLAGS) $^ -o $@
+	$(BUILT_MARK)
+$(BUILD)/cli/%.o: %.cpp cli/run.h $(CLI_HEADERS) $(HEADERS)
+	@mkdir -p $(@D)
+	$(CXX) $(CXXFLAGS) -Iinclude -c $< -o $@
 
 # The unit suites at make check's -Og (UNIT_CXXFLAGS): they test behaviour
 # at their full rounds in a few seconds either way, and -Og compiles in about
@@ -87,6 +111,7 @@ $(BUILD)/test_%_san: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 
 $(BUILD)/test_exceptions: tests/test_exceptions.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -std=c++20 -Iinclude -Itests $< -o $@
+	$(BUILT_MARK)
 
 # The two editions against each other: the course's (the top-level bvh.h,
 # "bvh.h" through -I.) and the engine (<bvh/bvh.h> through -Iinclude).
@@ -100,21 +125,26 @@ $(BUILD)/check/test_editions: $(EDITIONS_SOURCES) | $(BUILD)/check
 
 $(BUILD)/test_units: $(UNITY_SOURCES) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -Iinclude -Itests $< -o $@
+	$(BUILT_MARK)
 
 $(BUILD)/test_units_san: $(UNITY_SOURCES) | $(BUILD)
 	$(SAN_CXX) $(SANITIZE) $(UNITS_SAN_FLAGS) -Iinclude -Itests $< -o $@
 
 $(BUILD)/test_lanes: $(LANES_SOURCES) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -Iinclude -Itests $< -o $@
+	$(BUILT_MARK)
 
 $(BUILD)/test_lanes_san: $(LANES_SOURCES) | $(BUILD)
 	$(SAN_CXX) $(SANITIZE) -Iinclude -Itests $< -o $@
 
 # The sanitized CLI runs the command-line cases, all at the course's width
-# 3: -DBVH_CLI_COURSE_WIDTH_ONLY compiles that width alone (half the
-# compile; --width 2, 4 or 8 is then a usage error).
-$(BUILD)/bvh_san.out: main.cpp $(HEADERS) | $(BUILD)
-	$(SAN_CXX) $(SANITIZE) -DBVH_CLI_COURSE_WIDTH_ONLY -Iinclude main.cpp -o $@
+# 3: it is built of CLI_COURSE, that width alone (half the compile;
+# --width 2, 4 or 8 is then an error).
+$(BUILD)/bvh_san.out: $(CLI_COURSE:%=$(BUILD)/cli_san/%.o)
+	$(SAN_CXX) $(SANITIZE) $^ -o $@
+$(BUILD)/cli_san/%.o: %.cpp cli/run.h $(CLI_HEADERS) $(HEADERS)
+	@mkdir -p $(@D)
+	$(SAN_CXX) $(SANITIZE) -Iinclude -c $< -o $@
 
 # test_asserts and the examples at -O0: they run in a second or two (each
 # assert case in milliseconds) either way, and -O0 compiles them at least
@@ -152,12 +182,13 @@ $(BUILD)/check:
 	mkdir -p $@
 
 # What make test compiles: the sanitizer builds (by SAN_CXX), g++'s builds
-# and the fuzzer (clang++ only). tests/run.sh builds them all at once with
-# -j$(JOBS) -k, then runs the layers.
-# (Longest compiles first, so that -j ends on short ones. tests/run.sh runs
-# two makes: test-build-longest, bvh.out and the unit suites that the
-# valgrind layer runs (test_names is not one of them), so that the layer
-# starts beside the second make, of everything else.)
+# and the fuzzer (clang++ only). tests/run.sh builds them all in one make
+# -j$(JOBS) -k, the longest compiles first, so that -j ends on short ones,
+# and first the programs of the valgrind layer (the run's longest chain of
+# work): each of them, once linked, is marked $(BUILD)/NAME.built
+# (BUILT_MARK), and the layer's two streams start beside the rest of the
+# build as soon as their programs are there. (A marker target of its own
+# would wait for a free job slot, a whole compile.)
 LONGEST := bvh.out $(BUILD)/test_units $(BUILD)/test_lanes $(BUILD)/test_exceptions
 test-build-longest: $(LONGEST)
 test-build-san: $(SAN_TESTS)
@@ -212,11 +243,11 @@ course-check:
 FUZZ_SECONDS ?= 60
 FUZZ_CXX ?= clang++
 FUZZ_FLAGS := -std=c++17 -g1 -Wall -Wextra -pedantic -fsanitize=fuzzer,address,undefined \
-  -fno-sanitize-recover=all -DBVH_NO_MAIN -Iinclude
-$(BUILD)/fuzz_parser: tests/fuzz_parser.cpp main.cpp $(HEADERS) | $(BUILD)
-	$(FUZZ_CXX) -O1 $(FUZZ_FLAGS) $< main.cpp -o $@
-$(BUILD)/fuzz_parser_O0: tests/fuzz_parser.cpp main.cpp $(HEADERS) | $(BUILD)
-	$(FUZZ_CXX) -O0 $(FUZZ_FLAGS) $< main.cpp -o $@
+  -fno-sanitize-recover=all -Iinclude
+$(BUILD)/fuzz_parser: tests/fuzz_parser.cpp cli/options.cpp $(CLI_HEADERS) $(HEADERS) | $(BUILD)
+	$(FUZZ_CXX) -O1 $(FUZZ_FLAGS) $< cli/options.cpp -o $@
+$(BUILD)/fuzz_parser_O0: tests/fuzz_parser.cpp cli/options.cpp $(CLI_HEADERS) $(HEADERS) | $(BUILD)
+	$(FUZZ_CXX) -O0 $(FUZZ_FLAGS) $< cli/options.cpp -o $@
 
 fuzz: $(BUILD)/fuzz_parser
 	mkdir -p $(BUILD)/fuzz-work

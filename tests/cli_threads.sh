@@ -23,7 +23,9 @@ with open(sys.argv[1], "w") as f:
     f.write("%d\n" % resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)
 sys.exit(rc)'
 measured=()
-command -v python3 >/dev/null 2>&1 && measured=(python3 -c "$measure")
+# (tests/run.sh sets PYTHON: python3 found once, past any version manager's
+# shim, whose start costs more than some of these runs)
+command -v "${PYTHON:-python3}" >/dev/null 2>&1 && measured=("${PYTHON:-python3}" -S -c "$measure")
 
 # same_for_all_threads NAME ARGS...: runs ARGS with each --threads N and
 # compares the outputs with N = 1's.

@@ -12,7 +12,7 @@
 // byte is odd and a mixed scene when even), the rest
 // is a scene file (or, for the command-line path, NUL-separated arguments).
 // The scene paths use scene.h; the command-line path calls
-// bvh_parse_command_line of main.cpp, linked in (built with -DBVH_NO_MAIN).
+// bvh_parse_command_line of cli/options.cpp (bvh.out's parser), linked in.
 #include <cmath>
 #include <cstdint>
 #include <cstdio>

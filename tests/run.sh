@@ -497,23 +497,28 @@ cli_threads() {
 }
 
 # valgrind memcheck: unit tests and a bulk, an incremental and a discard run.
-valgrind_layer() {
-  if ! have valgrind; then
-    skip "valgrind layer" "valgrind not installed (apt-get install valgrind)"
-    return
-  fi
-  local VG=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=all --show-leak-kinds=all)
+# Two streams side by side, each starting as soon as its programs are built
+# (the build marks each: $BUILD/NAME.built): the suites of build/test_units,
+# then bvh.out's runs; and those of build/test_lanes and
+# build/test_exceptions. The layer is the run's longest chain of work: in
+# one stream, it would end after everything else.
+VG=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=all --show-leak-kinds=all)
+# Waits until the build has made each program NAME ($BUILD/NAME.built) or has ended.
+wait_built() {
+  local name
+  for name in "$@"; do
+    while [ ! -f "$BUILD/$name.built" ] && [ ! -f "$RESULTS/build-ended" ]; do pause; done
+  done
+}
+valgrind_units() {
+  wait_built test_units
   BVH_TEST_SCALE=0.03 run_suite valgrind_test_bvh "${VG[@]}" "$BUILD/test_units" bvh
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_threads "${VG[@]}" "$BUILD/test_units" threads
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_units" intersect
   BVH_TEST_SCALE=0.1 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_units" dynamic
   BVH_TEST_SCALE=0.15 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_units" moving
-  BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lanes" lazy_handles
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_units" parse
-  BVH_TEST_SCALE=0.05 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_lanes" disjoint
-  # (nouserintercepts: the test's own operator new, which injects the faults, stays in place)
-  BVH_TEST_SCALE=0.2 run_suite valgrind_test_exceptions "${VG[@]}" --soname-synonyms=somalloc=nouserintercepts \
-    "$BUILD/test_exceptions"
+  wait_built bvh.out
   run_case valgrind_bulk_build "${VG[@]}" ./bvh.out -i inputs/gen_1000.triangles -o "$OUT/vg_bulk.html" \
     --depth_limit 4 --visualize --print_tree
   run_case valgrind_incremental "${VG[@]}" ./bvh.out -i inputs/gen_1000.quads -o "$OUT/vg_incremental.html" \
@@ -523,6 +528,25 @@ valgrind_layer() {
   run_case valgrind_generate "${VG[@]}" ./bvh.out --generate triangles 300 --seed 3 -o "$OUT/vg.triangles"
   run_case valgrind_mixed_scene "${VG[@]}" ./bvh.out -i inputs/gen_overlap_1000.shapes -o "$OUT/vg_mixed.html" \
     --depth_limit 6 --incremental --discard_overlap --visualize --print_tree --pairs
+}
+valgrind_lanes() {
+  wait_built test_lanes
+  BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lanes" lazy_handles
+  BVH_TEST_SCALE=0.05 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_lanes" disjoint
+  wait_built test_exceptions
+  # (nouserintercepts: the test's own operator new, which injects the faults, stays in place)
+  BVH_TEST_SCALE=0.2 run_suite valgrind_test_exceptions "${VG[@]}" --soname-synonyms=somalloc=nouserintercepts \
+    "$BUILD/test_exceptions"
+}
+valgrind_layer() {
+  if ! have valgrind; then
+    skip "valgrind layer" "valgrind not installed (apt-get install valgrind)"
+    return
+  fi
+  valgrind_units >"$OUT/valgrind_units.txt" &
+  valgrind_lanes >"$OUT/valgrind_lanes.txt"
+  wait
+  cat "$OUT/valgrind_units.txt" "$OUT/valgrind_lanes.txt"
 }
 
 # include/bvh/'s rules (docs/design.txt): every header listed, includes
@@ -581,19 +605,21 @@ if [ "$QUICK" = no ] && ! have clang++; then
   skip "clang++ builds" "clang++ not installed (apt-get install clang): the libc++ build, the fuzzer and clang++'s course-framework build are skipped; g++ builds the sanitizer tests" |
     tee "$RESULTS/build_notices.txt"
 fi
-# Two makes, one after the other: first=(...), then targets=(...), the
-# longest compiles first in each, so that -j ends on short ones. The first
-# builds what the valgrind layer, the longest, runs (bvh.out and the unit
-# suites: the Makefile's test-build-longest); that layer then starts beside
-# the second.
-first=()
+# One make, the longest compiles first, so that -j ends on short ones;
+# first the programs the valgrind layer runs, each marked when linked
+# ($BUILD/NAME.built; marked here already when up to date): the layer's two
+# streams, the run's longest chain of work, start beside the rest of the
+# build as soon as their programs are there.
 targets=()
 if [ "$QUICK" = yes ]; then
   rm -f "$BUILD"/check/test_*.out # make runs each unit test again
   targets+=(check-build)
 else
-  first+=(test-build-longest)
-  targets+=("$BUILD/bvh_san.out")
+  for prog in "$BUILD/test_units" "$BUILD/test_lanes" "$BUILD/test_exceptions" bvh.out; do
+    rm -f "$BUILD/${prog##*/}.built"
+    if $MAKE --no-print-directory -q "$prog" 2>/dev/null; then : >"$BUILD/${prog##*/}.built"; fi
+  done
+  targets+=("$BUILD/test_units" "$BUILD/test_lanes" "$BUILD/test_exceptions" bvh.out "$BUILD/bvh_san.out")
   [ "$HAVE_FUZZER" = yes ] && targets+=("$BUILD/fuzz_parser_O0")
   targets+=(test-build-san test-build-gcc)
 fi
@@ -616,30 +642,27 @@ export TSAN_CXX
 EXAMPLE_CXX=$CXX
 [ "$QUICK" = no ] && have clang++ && EXAMPLE_CXX=clang++
 export EXAMPLE_CXX
-todo=$($MAKE --no-print-directory -n -k "${first[@]}" "${targets[@]}" 2>/dev/null | grep -cE "$compile_re")
-echo "building: $MAKE -k -j$JOBS ${first[*]}${first[*]:+, then }${targets[*]}: $todo compiles to do (log: $LOGS/build.log)"
+todo=$($MAKE --no-print-directory -n -k "${targets[@]}" 2>/dev/null | grep -cE "$compile_re")
+echo "building: $MAKE -k -j$JOBS ${targets[*]}: $todo compiles to do (log: $LOGS/build.log)"
 build_start=$SECONDS
 # (The build's results go to $RESULTS/build.txt too; not through a pipe, so
 # that a layer started during the build is this shell's.)
 build_result() { "$@" | tee -a "$RESULTS/build.txt"; }
 VALGRIND_EARLY=no
-rm -f "$RESULTS/first-built"
+rm -f "$RESULTS/build-ended"
 (
-  rc=0
-  if [ ${#first[@]} -gt 0 ]; then
-    $MAKE --no-print-directory -k -j"$JOBS" --output-sync=target "${first[@]}" || rc=1
-    : >"$RESULTS/first-built"
-  fi
-  $MAKE --no-print-directory -k -j"$JOBS" --output-sync=target "${targets[@]}" || rc=1
+  $MAKE --no-print-directory -k -j"$JOBS" --output-sync=target "${targets[@]}"
+  rc=$?
+  : >"$RESULTS/build-ended"
   exit $rc
 ) >"$LOGS/build.log" 2>&1 &
 make_pid=$!
 last=$SECONDS
 while kill -0 "$make_pid" 2>/dev/null; do
   pause
-  if [ "$VALGRIND_EARLY" = no ] && [ -f "$RESULTS/first-built" ]; then
+  if [ "$VALGRIND_EARLY" = no ] && [ "$QUICK" = no ] && { [ -f "$BUILD/test_units.built" ] || [ -f "$BUILD/test_lanes.built" ]; }; then
     VALGRIND_EARLY=yes
-    echo "   (the unit suites and bvh.out are built: valgrind starts beside the rest of the build, $((SECONDS - build_start)) s)"
+    echo "   (the first unit suites are built: valgrind starts beside the rest of the build, $((SECONDS - build_start)) s)"
     layer valgrind valgrind_layer
   fi
   if [ $((SECONDS - last)) -ge "$HEARTBEAT" ]; then
@@ -647,6 +670,7 @@ while kill -0 "$make_pid" 2>/dev/null; do
     last=$SECONDS
   fi
 done
+: >"$RESULTS/build-ended"
 if wait "$make_pid"; then
   build_result ok "build_$((SECONDS - build_start))s"
 else
