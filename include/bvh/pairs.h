@@ -1,7 +1,8 @@
 // bvh/pairs.h — all overlapping pairs of one tree.
 //
 // for_each_overlapping_pair: a walk over pairs of subtrees, leaf pairs
-// decided by box then intersect(), each pair once. Includes
+// decided by box then intersect(), each pair once; wide leaves read
+// through the leaf-summary test (each_candidate). Includes
 // leaf_summary.h.
 #ifndef BVH_PAIRS_H
 #define BVH_PAIRS_H
@@ -80,7 +81,10 @@ bool boxed_leaf_pairs(const Core<T, Tr, W> &core, const Node<W> &leaf_a, const B
 
 /// for_each_overlapping_pair(): the walk, with leaves that may hold more
 /// than kPlainPairs shapes (kMayBeWide) or not; in the second, the
-/// course's tree's, the leaves pair up by plain loops alone.
+/// course's tree's, the leaves pair up by plain loops alone. Its own
+/// traversal, not search()'s: it walks pairs of nodes, and its stack
+/// holds pairs; its leaves are read through the one leaf-summary test
+/// (boxed_leaf_pairs).
 template <bool kMayBeWide, class T, class Tr, int W, class F> void overlapping_pairs(const Core<T, Tr, W> &core, F &f) {
   const NodeStore<W> &nodes = core.nodes;
   auto pair = [&](const T &s, const T &u) {
