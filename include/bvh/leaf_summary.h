@@ -2,8 +2,8 @@
 //
 // make_summary and extend_summary (the writers of a leaf's codes: a code
 // is always its shape's own box, never a margin's), the leaf-summary test
-// every search reads a leaf through (candidates, each_of, each_candidate:
-// the shapes of a leaf whose box may meet a query's), and the disk fast
+// every search reads a leaf through (with_candidates, each_candidate: the
+// shapes of a leaf whose box may meet a query's), and the disk fast
 // path (DiskProbe, CodeFrame, disk_decision, each_disk_candidate,
 // disk_codes_hit): disks decided from their codes alone where the traits
 // promise inscribed disks.
@@ -103,40 +103,45 @@ template <class T, class Tr, int W> BVH_ALWAYS_INLINE void extend_summary(Core<T
   }
 }
 
-/// The leaf-summary test, the only one: which of leaf `node`'s n shapes
-/// may meet box `box`. With the summary in use (coded() is n), `coded` and
-/// in `bits` the shapes whose code box meets it; else every shape.
-struct Candidates {
-  std::uint32_t bits = 0;
-  bool coded = false;
-};
-template <int W> BVH_ALWAYS_INLINE Candidates candidates(const Node<W> &node, std::size_t n, const Box &box) {
-  if constexpr (Node<W>::kCoded > 0)
-    if (node.coded() == int(n)) return Candidates{node.meets(box, int(n)), true};
-  (void)node, (void)n, (void)box;
-  return Candidates{};
+/// Calls f(i) for each set bit i of `bits`, ascending, until f returns
+/// false (then returns false).
+template <class F> BVH_ALWAYS_INLINE bool each_bit(std::uint32_t bits, F &&f) {
+  for (; bits != 0; bits &= bits - 1)
+    if (!f(std::size_t(lowest_bit(bits)))) return false;
+  return true;
 }
-
-/// Calls f(i) for each candidate i (of n shapes) from `first` on,
-/// ascending, until f returns false (then returns false).
-template <class F> BVH_ALWAYS_INLINE bool each_of(const Candidates &c, std::size_t n, F &&f, std::size_t first = 0) {
-  if (c.coded) {
-    // (first < 32 here: a summary holds at most 32 shapes)
-    for (std::uint32_t bits = c.bits & ~((std::uint32_t(1) << first) - 1); bits != 0; bits &= bits - 1)
-      if (!f(std::size_t(lowest_bit(bits)))) return false;
-    return true;
-  }
+/// Calls f(i) for each i in [first, n), until f returns false (then
+/// returns false).
+template <class F> BVH_ALWAYS_INLINE bool each_index(std::size_t first, std::size_t n, F &&f) {
   for (std::size_t i = first; i < n; ++i)
     if (!f(i)) return false;
   return true;
 }
 
+/// The leaf-summary test, the only one: which of leaf `node`'s n shapes
+/// may meet box `box`. With the summary in use (coded() is n), returns
+/// coded(bits), bits the shapes whose code box meets it; else plain()
+/// (every shape may).
+template <int W, class Coded, class Plain>
+BVH_ALWAYS_INLINE bool with_candidates(const Node<W> &node, std::size_t n, const Box &box, Coded &&coded, Plain &&plain) {
+  if constexpr (Node<W>::kCoded > 0)
+    if (node.coded() == int(n)) return coded(node.meets(box, int(n)));
+  (void)box, (void)coded;
+  return plain();
+}
+
 /// Calls f(i) for each index i of leaf `node`'s n shapes whose box may
-/// meet `box` (candidates()), ascending from `first`, until f returns
+/// meet `box` (with_candidates()), ascending from `first`, until f returns
 /// false (then returns false).
 template <int W, class F>
 BVH_ALWAYS_INLINE bool each_candidate(const Node<W> &node, std::size_t n, const Box &box, F &&f, std::size_t first = 0) {
-  return each_of(candidates(node, n, box), n, f, first);
+  return with_candidates(
+      node, n, box,
+      [&](std::uint32_t bits) BVH_LAMBDA_INLINE {
+        // (first < 32 here: a summary holds at most 32 shapes)
+        return each_bit(bits & ~((std::uint32_t(1) << first) - 1), f);
+      },
+      [&]() BVH_LAMBDA_INLINE { return each_index(first, n, f); });
 }
 
 /// A collision probe read as a disk (InscribedDisks): the disk inscribed

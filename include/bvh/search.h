@@ -26,7 +26,7 @@ namespace detail {
 // collides_each), OverlapQuestion (visit_overlapping, visit_intersecting)
 // and EqualQuestion (find_equal). overlapping() runs walk()'s steps one at
 // a time with OverlapQuestion's tests (OverlapSearch). A leaf is read
-// through the one leaf-summary test (candidates()) and, for disks, the one
+// through the one leaf-summary test (with_candidates()) and, for disks, the one
 // disk fast path (each_disk_candidate()), both in leaf_summary.h.
 
 /// The one depth-first search: walk() from the root, where `question`
@@ -58,16 +58,20 @@ template <int W> BVH_ALWAYS_INLINE unsigned collision_children(const Node<W> &no
   }
 }
 
-/// Collision's disk fast path on a summarized leaf of disks: true when a
-/// candidate of `bits` surely meets the probe; else `bits` keeps those the
-/// codes cannot decide. (Not inlined: it runs on large trees only, and
-/// inlined it made the search of small trees, which never takes it,
-/// slower.)
-template <int W> BVH_NOINLINE bool disk_leaf_hit(const Node<W> &node, const DiskProbe &disk, std::uint32_t &bits) {
+/// Collision's disk fast path on a summarized leaf of disks, for the
+/// candidates `bits`: `hit` when one surely meets the probe; else `unsure`,
+/// those the codes cannot decide. (Not inlined: it runs on large trees
+/// only, and inlined it made the search of small trees, which never takes
+/// it, slower. Its answer comes back by value, so that the caller's
+/// candidates stay in registers.)
+struct DiskScreen {
   std::uint32_t unsure;
-  if (disk_codes_hit(node, bits, disk, unsure)) return true;
-  bits = unsure;
-  return false;
+  bool hit;
+};
+template <int W> BVH_NOINLINE DiskScreen disk_leaf_hit(const Node<W> &node, const DiskProbe &disk, std::uint32_t bits) {
+  DiskScreen s{0, false};
+  s.hit = disk_codes_hit(node, bits, disk, s.unsure);
+  return s;
 }
 
 /// The collision question: does some stored shape intersect `shape`
@@ -82,21 +86,29 @@ template <class T, class Tr, int W> struct CollisionQuestion {
   DiskProbe disk; // disk_probe(*core, box)
 
   BVH_ALWAYS_INLINE unsigned children(const Node<W> &node) const { return collision_children(node, probe); }
-  /// A leaf of n shapes before any exact test: true when its codes alone
-  /// show that one meets `shape`; else `left` gets the shapes still to test.
-  BVH_ALWAYS_INLINE bool screen(const Node<W> &node, std::size_t n, Candidates &left) const {
-    left = candidates(node, n, box);
-    if constexpr (kDisksFromCodes<Tr, W>)
-      if (left.coded && disk.usable) return disk_leaf_hit(node, disk, left.bits);
+  /// The candidates `bits` of a summarized leaf before any exact test:
+  /// true when the disks' codes alone show that one meets `shape` (then
+  /// `bits` is unchanged); else `bits` keeps those still to test.
+  BVH_ALWAYS_INLINE bool screen(const Node<W> &node, std::uint32_t &bits) const {
+    if constexpr (kDisksFromCodes<Tr, W>) {
+      if (disk.usable) {
+        const DiskScreen s = disk_leaf_hit(node, disk, bits);
+        if (s.hit) return true;
+        bits = s.unsure;
+      }
+    }
+    (void)node, (void)bits;
     return false;
   }
   /// True when stored shape s intersects `shape`.
   BVH_ALWAYS_INLINE bool meets(const T &s) const { return core->traits.intersect(s, *shape); }
   /// search()'s leaf decision: false (stop) on a hit.
   BVH_ALWAYS_INLINE bool leaf(int, const Node<W> &node, const Span<const T> &v) const {
-    Candidates left;
-    if (screen(node, v.size(), left)) return false;
-    return each_of(left, v.size(), [&](std::size_t i) BVH_LAMBDA_INLINE { return !meets(v[i]); });
+    const auto missed = [&](std::size_t i) BVH_LAMBDA_INLINE { return !meets(v[i]); };
+    return with_candidates(
+        node, v.size(), box,
+        [&](std::uint32_t bits) BVH_LAMBDA_INLINE { return !screen(node, bits) && each_bit(bits, missed); },
+        [&]() BVH_LAMBDA_INLINE { return each_index(0, v.size(), missed); });
   }
 };
 
@@ -142,16 +154,20 @@ template <class T, class Tr, int W> struct CollisionLane {
   /// tested now).
   BVH_ALWAYS_INLINE bool visit_leaf(const Node<W> &node_at) {
     const Span<const T> v = question.core->leaves.shapes(node_at);
-    Candidates left;
-    if (question.screen(node_at, v.size(), left)) return true;
-    if (v.size() > kDeferred)
-      return !each_of(left, v.size(), [&](std::size_t i) BVH_LAMBDA_INLINE { return !question.meets(v[i]); });
-    const std::uint32_t bits =
-        left.coded ? left.bits : v.size() == 32 ? ~std::uint32_t(0) : (std::uint32_t(1) << v.size()) - 1;
-    for (std::uint32_t b = bits; b != 0; b &= b - 1) prefetch_lines(v.begin() + lowest_bit(b), sizeof(T));
-    leaf = v.begin();
-    pending = bits;
-    return false;
+    const auto missed = [&](std::size_t i) BVH_LAMBDA_INLINE { return !question.meets(v[i]); };
+    const auto defer = [&](std::uint32_t bits) BVH_LAMBDA_INLINE {
+      for (std::uint32_t b = bits; b != 0; b &= b - 1) prefetch_lines(v.begin() + lowest_bit(b), sizeof(T));
+      leaf = v.begin();
+      pending = bits;
+      return false;
+    };
+    return with_candidates(
+        node_at, v.size(), question.box,
+        [&](std::uint32_t bits) BVH_LAMBDA_INLINE { return question.screen(node_at, bits) || defer(bits); },
+        [&]() BVH_LAMBDA_INLINE {
+          if (v.size() > kDeferred) return !each_index(0, v.size(), missed);
+          return defer(v.size() == 32 ? ~std::uint32_t(0) : (std::uint32_t(1) << v.size()) - 1);
+        });
   }
   /// One step; true when the search has its answer (in *hit).
   BVH_ALWAYS_INLINE bool step() {
@@ -237,13 +253,17 @@ template <class T, class Tr, int W, class V> struct OverlapQuestion {
     const auto tested = [&](std::size_t i) BVH_LAMBDA_INLINE {
       return !overlap_found(core.traits, v[i], box, shape) || visit(v[i]);
     };
-    const Candidates c = candidates(node, v.size(), box);
-    if constexpr (kDisksFromCodes<Tr, W>)
-      if (shape && c.coded && disk.usable)
-        return each_disk_candidate(node, c.bits, disk, [&](int i, bool sure) BVH_LAMBDA_INLINE {
-          return sure ? visit(v[i]) : tested(std::size_t(i));
-        });
-    return each_of(c, v.size(), tested);
+    return with_candidates(
+        node, v.size(), box,
+        [&](std::uint32_t bits) BVH_LAMBDA_INLINE {
+          if constexpr (kDisksFromCodes<Tr, W>)
+            if (shape && disk.usable)
+              return each_disk_candidate(node, bits, disk, [&](int i, bool sure) BVH_LAMBDA_INLINE {
+                return sure ? visit(v[i]) : tested(std::size_t(i));
+              });
+          return each_bit(bits, tested);
+        },
+        [&]() BVH_LAMBDA_INLINE { return each_index(0, v.size(), tested); });
   }
 };
 
@@ -301,10 +321,18 @@ public:
       const Node<W> &node = core_->nodes.node(stack_.pop());
       if (node.is_leaf()) {
         const Span<const T> v = core_->leaves.shapes(node);
-        const Candidates c = candidates(node, v.size(), box_);
         next_ = v.begin();
-        last_ = c.coded ? next_ : v.end();
-        bits_ = c.bits;
+        with_candidates(
+            node, v.size(), box_,
+            [&](std::uint32_t bits) BVH_LAMBDA_INLINE {
+              bits_ = bits;
+              last_ = next_;
+              return true;
+            },
+            [&]() BVH_LAMBDA_INLINE {
+              last_ = v.end();
+              return true;
+            });
         continue;
       }
       const unsigned hits = child_hits(node, probe_); // (OverlapQuestion's children())
