@@ -26,8 +26,11 @@ namespace detail {
 // collides_each), OverlapQuestion (visit_overlapping, visit_intersecting)
 // and EqualQuestion (find_equal). overlapping() runs walk()'s steps one at
 // a time with OverlapQuestion's tests (OverlapSearch). A leaf is read
-// through the one leaf-summary test (with_candidates()) and, for disks, the one
-// disk fast path (each_disk_candidate()), both in leaf_summary.h.
+// through the one leaf-summary test (with_candidates()) and, for disks,
+// the one disk fast path (each_disk_candidate()), both in leaf_summary.h.
+// collides_each, OverlapSearch and the pairs (pairs.h) keep stepping of
+// their own: interleaved lanes, a walk suspended between calls, a walk
+// over pairs of nodes; each decides with the same tests.
 
 /// The one depth-first search: walk() from the root, where `question`
 /// decides which children of an inner node to enter (children(node), as
