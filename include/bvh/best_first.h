@@ -93,6 +93,66 @@ template <class P> struct RayMetric {
   static double beyond(double worst) { return worst * (1 + 1e-12) + 1e-300; }
 };
 
+/// best_first()'s bound: a node or shape whose key is past it cannot be
+/// among the k best, `found` (a max-heap of the best min(k, seen) so far).
+template <class Metric, class Answers>
+BVH_ALWAYS_INLINE double answer_bound(const Metric &metric, std::size_t k, const Answers &found) {
+  return found.size() < k ? std::numeric_limits<double>::infinity() : metric.beyond(found.front().key);
+}
+
+/// best_first()'s visit of leaf `node`: its shapes of finite key offered to
+/// the k best in `found`. The ids are read only once a shape is near
+/// enough to need its tie-break.
+template <class T, class Tr, int W, class Metric, class Answers>
+BVH_ALWAYS_INLINE void offer_leaf(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k, const Node<W> &node,
+                                  Answers &found) {
+  const double inf = std::numeric_limits<double>::infinity();
+  const Span<const T> v = core.leaves.shapes(node);
+  const std::uint32_t *ids = nullptr;
+  double limit = answer_bound(metric, k, found); // (it changes only when `found` does)
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    // (once k are found, a shape whose box is beyond the k-th needs no
+    // exact key: the box costs a few compares, the key a square root)
+    if (found.size() == k && metric.box_key(box_of(core.traits, v[i])) > limit) continue;
+    const double d = metric.shape_key(v[i]);
+    if (!(d < inf) || (found.size() == k && d > found.front().key)) continue;
+    if (!ids) ids = core.leaves.ids(node);
+    const Found<T> f{d, ids[i], &v[i]};
+    if (found.size() < k) {
+      found.push_back(f);
+      std::push_heap(found.begin(), found.end());
+    } else if (f < found.front()) {
+      std::pop_heap(found.begin(), found.end());
+      found.back() = f;
+      std::push_heap(found.begin(), found.end());
+    }
+    limit = answer_bound(metric, k, found);
+  }
+}
+
+/// best_first()'s first dive, along the nearest boxes from the root to one
+/// leaf: its shapes bound the search, which would otherwise push every
+/// child it passes on its way to the first leaf (the bound is +inf until k
+/// shapes are found). The leaf, or -1 when the dive is not worth it (a
+/// leaf may fill all k only when k <= split_threshold) or finds no child
+/// of finite key.
+template <class T, class Tr, int W, class Metric>
+BVH_ALWAYS_INLINE int dive_leaf(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k) {
+  const double inf = std::numeric_limits<double>::infinity();
+  int dive = k <= std::size_t(core.split_threshold) ? core.root : -1;
+  while (dive >= 0 && !core.nodes.node(dive).is_leaf()) {
+    const Node<W> &node = core.nodes.node(dive);
+    double least = inf, key[W + W % 2];
+    int next = -1;
+    metric.box_keys(node, key);
+    for (int c = 0; c < node.num_children; ++c)
+      if (key[c] < least) least = key[c], next = node.child(c);
+    if (next < 0) break; // (no child has a finite key)
+    dive = next;
+  }
+  return dive >= 0 && core.nodes.node(dive).is_leaf() ? dive : -1;
+}
+
 /// The one best-first search: the min(k, size) shapes of least finite
 /// metric.shape_key, in increasing (key, id) order, into `found`. Nodes
 /// are taken in order of metric.box_key, a lower bound on the keys of the
@@ -108,48 +168,8 @@ void best_first(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k,
   if (k == 0 || core.root < 0 || !metric.supported()) return;
   const double inf = std::numeric_limits<double>::infinity();
   found.reserve(std::min(k, core.size) + 1); // a max-heap of the best min(k, seen) so far
-  auto bound = [&] { return found.size() < k ? inf : metric.beyond(found.front().key); };
-  auto visit_leaf = [&](const Node<W> &node) {
-    // The ids only once a shape is near enough to need its tie-break.
-    const Span<const T> v = core.leaves.shapes(node);
-    const std::uint32_t *ids = nullptr;
-    double limit = bound(); // (it changes only when `found` does)
-    for (std::size_t i = 0; i < v.size(); ++i) {
-      // (once k are found, a shape whose box is beyond the k-th needs no
-      // exact key: the box costs a few compares, the key a square root)
-      if (found.size() == k && metric.box_key(box_of(core.traits, v[i])) > limit) continue;
-      const double d = metric.shape_key(v[i]);
-      if (!(d < inf) || (found.size() == k && d > found.front().key)) continue;
-      if (!ids) ids = core.leaves.ids(node);
-      const Found<T> f{d, ids[i], &v[i]};
-      if (found.size() < k) {
-        found.push_back(f);
-        std::push_heap(found.begin(), found.end());
-      } else if (f < found.front()) {
-        std::pop_heap(found.begin(), found.end());
-        found.back() = f;
-        std::push_heap(found.begin(), found.end());
-      }
-      limit = bound();
-    }
-  };
-  // First a dive along the nearest boxes to one leaf: its shapes bound
-  // the search, which would otherwise push every child it passes on its
-  // way to the first leaf (the bound is +inf until k shapes are found).
-  // (A leaf may fill all k only when k <= split_threshold.)
-  int dive = k <= std::size_t(core.split_threshold) ? core.root : -1;
-  while (dive >= 0 && !core.nodes.node(dive).is_leaf()) {
-    const Node<W> &node = core.nodes.node(dive);
-    double least = inf, key[W + W % 2];
-    int next = -1;
-    metric.box_keys(node, key);
-    for (int c = 0; c < node.num_children; ++c)
-      if (key[c] < least) least = key[c], next = node.child(c);
-    if (next < 0) break; // (no child has a finite key)
-    dive = next;
-  }
-  if (dive >= 0 && core.nodes.node(dive).is_leaf()) visit_leaf(core.nodes.node(dive));
-  else dive = -1;
+  const int dive = dive_leaf(core, metric, k);
+  if (dive >= 0) offer_leaf(core, metric, k, core.nodes.node(dive), found);
   // (a trivial struct, not a std::pair: the heap's inline room is then
   // left uninitialised, not zeroed on every query)
   struct Entry {
@@ -164,13 +184,13 @@ void best_first(const Core<T, Tr, W> &core, const Metric &metric, std::size_t k,
     std::pop_heap(heap.begin(), heap.end(), later);
     const Entry e = heap.back();
     heap.pop_back();
-    if (e.key > bound()) break;
+    if (e.key > answer_bound(metric, k, found)) break;
     const Node<W> &node = core.nodes.node(e.node);
     if (node.is_leaf()) {
-      if (e.node != dive) visit_leaf(node); // (the dive's leaf is done)
+      if (e.node != dive) offer_leaf(core, metric, k, node, found); // (the dive's leaf is done)
       continue;
     }
-    const double limit = bound();
+    const double limit = answer_bound(metric, k, found);
     double keys[W + W % 2];
     metric.box_keys(node, keys);
     for (int c = 0; c < node.num_children; ++c) {

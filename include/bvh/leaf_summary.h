@@ -1,10 +1,12 @@
 // bvh/leaf_summary.h — a leaf's summary: its shapes' boxes in bytes, and the decisions read from it.
 //
 // make_summary and extend_summary (the writers of a leaf's codes: a code
-// is always its shape's own box, never a margin's), each_candidate (the
-// shapes of a leaf whose box may meet a query's), and the disk decisions
-// (DiskProbe, CodeFrame, disk_decision, disk_codes_hit): disks decided
-// from their codes alone where the traits promise inscribed disks.
+// is always its shape's own box, never a margin's), the leaf-summary test
+// every search reads a leaf through (with_candidates, each_candidate: the
+// shapes of a leaf whose box may meet a query's), and the disk fast
+// path (DiskProbe, CodeFrame, disk_decision, each_disk_candidate,
+// disk_codes_hit): disks decided from their codes alone where the traits
+// promise inscribed disks.
 // Includes core.h.
 #ifndef BVH_LEAF_SUMMARY_H
 #define BVH_LEAF_SUMMARY_H
@@ -98,21 +100,45 @@ template <class T, class Tr, int W> BVH_ALWAYS_INLINE void extend_summary(Core<T
   }
 }
 
-/// Calls f(i) for each index i of leaf `node`'s n shapes whose box may
-/// meet `box`, ascending, until f returns false (then returns false): with
-/// the leaf's summary in use, the shapes whose code box meets it; else
-/// every shape.
-template <int W, class F> BVH_ALWAYS_INLINE bool each_candidate(const Node<W> &node, std::size_t n, const Box &box, F &&f) {
-  if constexpr (Node<W>::kCoded > 0) {
-    if (node.coded() == int(n)) {
-      for (std::uint32_t bits = node.meets(box, int(n)); bits != 0; bits &= bits - 1)
-        if (!f(std::size_t(lowest_bit(bits)))) return false;
-      return true;
-    }
-  }
-  for (std::size_t i = 0; i < n; ++i)
+/// Calls f(i) for each set bit i of `bits`, ascending, until f returns
+/// false (then returns false).
+template <class F> BVH_ALWAYS_INLINE bool each_bit(std::uint32_t bits, F &&f) {
+  for (; bits != 0; bits &= bits - 1)
+    if (!f(std::size_t(lowest_bit(bits)))) return false;
+  return true;
+}
+/// Calls f(i) for each i in [first, n), until f returns false (then
+/// returns false).
+template <class F> BVH_ALWAYS_INLINE bool each_index(std::size_t first, std::size_t n, F &&f) {
+  for (std::size_t i = first; i < n; ++i)
     if (!f(i)) return false;
   return true;
+}
+
+/// The leaf-summary test, the only one: which of leaf `node`'s n shapes
+/// may meet box `box`. With the summary in use (coded() is n), returns
+/// coded(bits), bits the shapes whose code box meets it; else plain()
+/// (every shape may).
+template <int W, class Coded, class Plain>
+BVH_ALWAYS_INLINE bool with_candidates(const Node<W> &node, std::size_t n, const Box &box, Coded &&coded, Plain &&plain) {
+  if constexpr (Node<W>::kCoded > 0)
+    if (node.coded() == int(n)) return coded(node.meets(box, int(n)));
+  (void)box, (void)coded;
+  return plain();
+}
+
+/// Calls f(i) for each index i of leaf `node`'s n shapes whose box may
+/// meet `box` (with_candidates()), ascending from `first`, until f returns
+/// false (then returns false).
+template <int W, class F>
+BVH_ALWAYS_INLINE bool each_candidate(const Node<W> &node, std::size_t n, const Box &box, F &&f, std::size_t first = 0) {
+  return with_candidates(
+      node, n, box,
+      [&](std::uint32_t bits) BVH_LAMBDA_INLINE {
+        // (first < 32 here: a summary holds at most 32 shapes)
+        return each_bit(bits & ~((std::uint32_t(1) << first) - 1), f);
+      },
+      [&]() BVH_LAMBDA_INLINE { return each_index(first, n, f); });
 }
 
 /// A collision probe read as a disk (InscribedDisks): the disk inscribed
@@ -192,24 +218,41 @@ template <int W> BVH_ALWAYS_INLINE int disk_decision(const Node<W> &node, int i,
   return 0;
 }
 
-/// For a summarized leaf of inscribed disks (n shapes, all coded): true
-/// when one whose code box meets `box` surely meets probe `p`; otherwise
-/// `unsure` gets those whose code box meets `box` that the codes cannot
-/// decide (all of them when the frame or the probe is unusable).
+/// The disk fast path, the only one. For candidates `bits` of a leaf of
+/// inscribed disks with its summary in use: calls f(i, sure) for each,
+/// ascending, but those whose codes show they surely miss probe `p`; sure
+/// when they show it surely meets. Stops when f returns false (then
+/// returns false). Every candidate is unsure when the frame or the probe
+/// is unusable.
+template <int W, class F>
+BVH_ALWAYS_INLINE bool each_disk_candidate(const Node<W> &node, std::uint32_t bits, const DiskProbe &p, F &&f) {
+  if (bits == 0) return true;
+  const CodeFrame frame = p.usable ? CodeFrame::of(node.frame()) : CodeFrame{};
+  for (; bits != 0; bits &= bits - 1) {
+    const int i = lowest_bit(bits);
+    const int d = frame.usable ? disk_decision(node, i, frame, p) : 0;
+    if (d < 0) continue;
+    if (!f(i, d > 0)) return false;
+  }
+  return true;
+}
+
+/// Collision's use of the fast path: true when one of the candidates
+/// `bits` surely meets probe `p`; otherwise `unsure` gets those the codes
+/// cannot decide.
+template <int W>
+BVH_ALWAYS_INLINE bool disk_codes_hit(const Node<W> &node, std::uint32_t bits, const DiskProbe &p, std::uint32_t &unsure) {
+  unsure = 0;
+  return !each_disk_candidate(node, bits, p, [&](int i, bool sure) {
+    unsure |= std::uint32_t(1) << i;
+    return !sure;
+  });
+}
+/// disk_codes_hit() of the shapes of a summarized leaf of n disks whose
+/// code box meets `box`.
 template <int W>
 BVH_ALWAYS_INLINE bool disk_codes_hit(const Node<W> &node, int n, const Box &box, const DiskProbe &p, std::uint32_t &unsure) {
-  const std::uint32_t bits = node.meets(box, n);
-  unsure = bits;
-  if (bits == 0 || !p.usable) return false;
-  const CodeFrame f = CodeFrame::of(node.frame());
-  if (!f.usable) return false;
-  for (std::uint32_t b = bits; b != 0; b &= b - 1) {
-    const int i = lowest_bit(b);
-    const int d = disk_decision(node, i, f, p);
-    if (d > 0) return true;
-    if (d < 0) unsure &= ~(std::uint32_t(1) << i);
-  }
-  return false;
+  return disk_codes_hit(node, node.meets(box, n), p, unsure);
 }
 
 /// True when collision searches may decide a summarized leaf's disks from

@@ -1,7 +1,8 @@
 // bvh/pairs.h — all overlapping pairs of one tree.
 //
 // for_each_overlapping_pair: a walk over pairs of subtrees, leaf pairs
-// decided by box then intersect(), each pair once. Includes
+// decided by box then intersect(), each pair once; wide leaves read
+// through the leaf-summary test (each_candidate). Includes
 // leaf_summary.h.
 #ifndef BVH_PAIRS_H
 #define BVH_PAIRS_H
@@ -63,21 +64,12 @@ bool boxed_leaf_pairs(const Core<T, Tr, W> &core, const Node<W> &leaf_a, const B
     return s.box.overlaps(u.box) && core.traits.intersect(*s.shape, *u.shape);
   };
   const std::size_t n = collect(leaf_a, within_a, in_a);
-  if (!within_a) { // one leaf: shape i against the later shapes whose code box meets its box
-    if constexpr (Node<W>::kCoded > 0) {
-      if (leaf_a.coded() == int(n)) {
-        for (std::size_t i = 0; i + 1 < n; ++i)
-          for (std::uint32_t bits = leaf_a.meets(in_a[i].box, int(n)) & (~std::uint32_t(1) << i); bits != 0;
-               bits &= bits - 1) {
-            const std::size_t j = std::size_t(lowest_bit(bits));
-            if (pair(in_a[i], in_a[j]) && !keep_going(f, *in_a[i].shape, *in_a[j].shape)) return false;
-          }
-        return true;
-      }
-    }
-    for (std::size_t i = 0; i < n; ++i)
-      for (std::size_t j = i + 1; j < n; ++j)
-        if (pair(in_a[i], in_a[j]) && !keep_going(f, *in_a[i].shape, *in_a[j].shape)) return false;
+  if (!within_a) { // one leaf: shape i against the later ones that may meet its box
+    for (std::size_t i = 0; i + 1 < n; ++i)
+      if (!each_candidate(leaf_a, n, in_a[i].box, [&](std::size_t j) {
+            return !pair(in_a[i], in_a[j]) || keep_going(f, *in_a[i].shape, *in_a[j].shape);
+          }, i + 1))
+        return false;
     return true;
   }
   const std::size_t m = n ? collect(leaf_b, within_b, in_b) : 0;
@@ -89,7 +81,10 @@ bool boxed_leaf_pairs(const Core<T, Tr, W> &core, const Node<W> &leaf_a, const B
 
 /// for_each_overlapping_pair(): the walk, with leaves that may hold more
 /// than kPlainPairs shapes (kMayBeWide) or not; in the second, the
-/// course's tree's, the leaves pair up by plain loops alone.
+/// course's tree's, the leaves pair up by plain loops alone. Its own
+/// traversal, not search()'s: it walks pairs of nodes, and its stack
+/// holds pairs; its leaves are read through the one leaf-summary test
+/// (boxed_leaf_pairs).
 template <bool kMayBeWide, class T, class Tr, int W, class F> void overlapping_pairs(const Core<T, Tr, W> &core, F &f) {
   const NodeStore<W> &nodes = core.nodes;
   auto pair = [&](const T &s, const T &u) {

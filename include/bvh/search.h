@@ -1,8 +1,11 @@
-// bvh/search.h — the depth-first searches: collision, box and shape queries, overlapping().
+// bvh/search.h — the depth-first searches: one engine, a question per query.
 //
-// collides, collides_each (several probes interleaved), visit_overlapping,
-// visit_intersecting, OverlapSearch (a suspended walk, for iterators) and
-// find_equal. Every query is const. Includes leaf_summary.h.
+// search() (walk() from the root; the question decides the children to
+// enter and each leaf) and its questions: CollisionQuestion (collides, and
+// collides_each's interleaved lanes), OverlapQuestion (visit_overlapping,
+// visit_intersecting; OverlapSearch, a suspended walk for iterators, shares
+// its tests) and EqualQuestion (find_equal). Every query is const.
+// Includes leaf_summary.h.
 #ifndef BVH_SEARCH_H
 #define BVH_SEARCH_H
 
@@ -17,10 +20,33 @@ namespace detail {
 
 // Every query is const and reads the tree only, so any number of threads
 // may query one tree at once while none changes it. The depth-first ones
-// run walk(); overlapping() runs walk()'s steps one at a time; the nearest
-// searches and the ray run best_first().
+// are one engine, search() (walk() from the root), with a question per
+// query that decides the children to enter and each leaf, as best_first()
+// has a metric per query: CollisionQuestion (collides, and each lane of
+// collides_each), OverlapQuestion (visit_overlapping, visit_intersecting)
+// and EqualQuestion (find_equal). overlapping() runs walk()'s steps one at
+// a time with OverlapQuestion's tests (OverlapSearch). A leaf is read
+// through the one leaf-summary test (with_candidates()) and, for disks,
+// the one disk fast path (each_disk_candidate()), both in leaf_summary.h.
+// collides_each, OverlapSearch and the pairs (pairs.h) keep stepping of
+// their own: interleaved lanes, a walk suspended between calls, a walk
+// over pairs of nodes; each decides with the same tests.
 
-/// collides()'s visit of inner node `node`: the children to enter, as
+/// The one depth-first search: walk() from the root, where `question`
+/// decides which children of an inner node to enter (children(node), as
+/// walk()'s visit result) and each leaf (leaf(n, node, shapes): false
+/// stops the search). False when a leaf stopped it. The caller has tested
+/// the root's box, each question its own way.
+template <class T, class Tr, int W, class Question>
+BVH_ALWAYS_INLINE bool search(const Core<T, Tr, W> &core, Question &question) {
+  return walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
+    const Node<W> &node = core.nodes.node(n);
+    if (node.is_leaf()) return question.leaf(n, node, core.leaves.shapes(node)) ? 0 : kStop;
+    return question.children(node);
+  });
+}
+
+/// Collision's visit of inner node `node`: the children to enter, as
 /// walk()'s visit result. Children holding the probe's centre go first
 /// where leaves have no summary: there a leaf visit reads every shape, and
 /// a hit is likely in those. A summarized leaf is cheap to visit, and the
@@ -35,77 +61,156 @@ template <int W> BVH_ALWAYS_INLINE unsigned collision_children(const Node<W> &no
   }
 }
 
-/// collides()'s visit of a summarized leaf of n disks (kDisksFromCodes,
-/// the probe usable): true when one meets `shape`. (Not inlined: it runs on
-/// large trees only, and inlined it made the search of small trees, which
-/// never takes it, slower.)
-template <class T, class Tr, int W>
-BVH_NOINLINE bool disk_leaf_collides(const Tr &traits, const Node<W> &node, const T *v, int n, const Box &box,
-                                     const DiskProbe &disk, const T &shape) {
+/// Collision's disk fast path on a summarized leaf of disks, for the
+/// candidates `bits`: `hit` when one surely meets the probe; else `unsure`,
+/// those the codes cannot decide. (Not inlined: it runs on large trees
+/// only, and inlined it made the search of small trees, which never takes
+/// it, slower. Its answer comes back by value, so that the caller's
+/// candidates stay in registers.)
+struct DiskScreen {
   std::uint32_t unsure;
-  if (disk_codes_hit(node, n, box, disk, unsure)) return true;
-  for (; unsure != 0; unsure &= unsure - 1)
-    if (traits.intersect(v[lowest_bit(unsure)], shape)) return true;
-  return false;
+  bool hit;
+};
+template <int W> BVH_NOINLINE DiskScreen disk_leaf_hit(const Node<W> &node, const DiskProbe &disk, std::uint32_t bits) {
+  DiskScreen s{0, false};
+  s.hit = disk_codes_hit(node, bits, disk, s.unsure);
+  return s;
 }
 
-/// True iff some stored shape intersects `shape` (touching counts).
-/// Subtrees whose box misses the shape's box are never visited; the final
-/// test is T's intersect().
+/// The collision question: does some stored shape intersect `shape`
+/// (touching counts)? Subtrees whose box misses the shape's box are never
+/// visited; the final test is T's intersect(). collides() asks it in one
+/// search, collides_each() in interleaved steps.
+template <class T, class Tr, int W> struct CollisionQuestion {
+  const Core<T, Tr, W> *core = nullptr;
+  const T *shape = nullptr; // (null: collides_each's lane is idle)
+  Box box;                  // shape's box
+  Probe probe{0, 0, 0, 0, 0, 0};
+  DiskProbe disk; // disk_probe(*core, box)
+
+  BVH_ALWAYS_INLINE unsigned children(const Node<W> &node) const { return collision_children(node, probe); }
+  /// The candidates `bits` of a summarized leaf before any exact test:
+  /// true when the disks' codes alone show that one meets `shape` (then
+  /// `bits` is unchanged); else `bits` keeps those still to test.
+  BVH_ALWAYS_INLINE bool screen(const Node<W> &node, std::uint32_t &bits) const {
+    if constexpr (kDisksFromCodes<Tr, W>) {
+      if (disk.usable) {
+        const DiskScreen s = disk_leaf_hit(node, disk, bits);
+        if (s.hit) return true;
+        bits = s.unsure;
+      }
+    }
+    (void)node, (void)bits;
+    return false;
+  }
+  /// True when stored shape s intersects `shape`.
+  BVH_ALWAYS_INLINE bool meets(const T &s) const { return core->traits.intersect(s, *shape); }
+  /// search()'s leaf decision: false (stop) on a hit.
+  BVH_ALWAYS_INLINE bool leaf(int, const Node<W> &node, const Span<const T> &v) const {
+    const auto missed = [&](std::size_t i) BVH_LAMBDA_INLINE { return !meets(v[i]); };
+    return with_candidates(
+        node, v.size(), box,
+        [&](std::uint32_t bits) BVH_LAMBDA_INLINE { return !screen(node, bits) && each_bit(bits, missed); },
+        [&]() BVH_LAMBDA_INLINE { return each_index(0, v.size(), missed); });
+  }
+};
+
+/// True iff some stored shape intersects `shape` (CollisionQuestion).
 template <class T, class Tr, int W> bool collides(const Core<T, Tr, W> &core, const T &shape) {
   if (core.root < 0) return false;
   const Box box = box_of(core.traits, shape);
   if (!core.nodes.box(core.root).overlaps(box)) return false;
-  const Probe probe = Probe::around(box);
-  const DiskProbe disk = disk_probe(core, box);
-  return !walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-    const Node<W> &node = core.nodes.node(n);
-    if (node.is_leaf()) {
-      const Span<const T> v = core.leaves.shapes(node);
-      if constexpr (kDisksFromCodes<Tr, W>)
-        if (disk.usable && node.coded() == int(v.size()))
-          return disk_leaf_collides(core.traits, node, v.begin(), int(v.size()), box, disk, shape) ? kStop : 0;
-      const bool missed =
-          each_candidate(node, v.size(), box, [&](std::size_t i) { return !core.traits.intersect(v[i], shape); });
-      return missed ? 0 : kStop;
-    }
-    return collision_children(node, probe);
-  });
+  const CollisionQuestion<T, Tr, W> question{&core, &shape, box, Probe::around(box), disk_probe(core, box)};
+  return !search(core, question);
 }
 
+/// One of collides_each()'s interleaved searches: a CollisionQuestion and
+/// walk()'s state, kept between steps. Each step asks the cache for what
+/// the next one reads (the node it enters, or the leaf's shapes left to
+/// test) and hands over to the next lane.
+template <class T, class Tr, int W> struct CollisionLane {
+  /// A leaf of at most this many shapes waits for their prefetch.
+  static constexpr std::size_t kDeferred = 32;
+  CollisionQuestion<T, Tr, W> question; // (question.shape null: idle)
+  unsigned char *hit = nullptr;
+  IndexStack stack;
+  int node = -1;             // the node the next step visits,
+  const T *leaf = nullptr;   // or, while `pending` is not 0, the leaf's shapes
+  std::uint32_t pending = 0; // whose bits are set here: the next step tests them
+
+  BVH_ALWAYS_INLINE void enter(int n) {
+    node = n;
+    prefetch_lines(&question.core->nodes.node(n), sizeof(Node<W>));
+  }
+  /// Starts the search for `shape`, whose box `box` meets the root's.
+  BVH_ALWAYS_INLINE void start(const Core<T, Tr, W> &core, const T &shape, const Box &box, unsigned char *answer) {
+    question.core = &core;
+    question.shape = &shape;
+    question.box = box;
+    question.probe = Probe::inline_around(box);
+    if constexpr (kDisksFromCodes<Tr, W>) question.disk = disk_probe(core, box);
+    hit = answer;
+    enter(core.root);
+  }
+  /// The leaf's step: true when it decided a hit; else the shapes left to
+  /// test are prefetched and pending (unless there are too many: then
+  /// tested now).
+  BVH_ALWAYS_INLINE bool visit_leaf(const Node<W> &node_at) {
+    const Span<const T> v = question.core->leaves.shapes(node_at);
+    const auto missed = [&](std::size_t i) BVH_LAMBDA_INLINE { return !question.meets(v[i]); };
+    const auto defer = [&](std::uint32_t bits) BVH_LAMBDA_INLINE {
+      for (std::uint32_t b = bits; b != 0; b &= b - 1) prefetch_lines(v.begin() + lowest_bit(b), sizeof(T));
+      leaf = v.begin();
+      pending = bits;
+      return false;
+    };
+    return with_candidates(
+        node_at, v.size(), question.box,
+        [&](std::uint32_t bits) BVH_LAMBDA_INLINE { return question.screen(node_at, bits) || defer(bits); },
+        [&]() BVH_LAMBDA_INLINE {
+          if (v.size() > kDeferred) return !each_index(0, v.size(), missed);
+          return defer(v.size() == 32 ? ~std::uint32_t(0) : (std::uint32_t(1) << v.size()) - 1);
+        });
+  }
+  /// One step; true when the search has its answer (in *hit).
+  BVH_ALWAYS_INLINE bool step() {
+    if (pending != 0) {
+      for (; pending != 0; pending &= pending - 1)
+        if (question.meets(leaf[lowest_bit(pending)])) {
+          pending = 0;
+          return *hit = 1, true;
+        }
+    } else {
+      const Node<W> &node_at = question.core->nodes.node(node);
+      if (node_at.is_leaf()) {
+        if (visit_leaf(node_at)) return *hit = 1, true;
+        if (pending != 0) return false;
+      } else if (const unsigned enter_bits = question.children(node_at)) {
+        enter(enter_children(stack, node_at, enter_bits));
+        return false;
+      }
+    }
+    if (stack.empty()) return *hit = 0, true;
+    enter(stack.pop());
+    return false;
+  }
+};
+
 /// hit[j] = collides(core, shapes[j]) for each j < count, on one thread,
-/// with kLanes of the searches interleaved. A search of a large tree
-/// mostly waits for memory: each node and the shapes it reads are a miss
-/// that depends on the one before. Here each step of a search asks the
-/// cache for what its next step reads (the node it enters, or the leaf's
-/// shapes whose code box meets the probe) and hands over to the next
-/// search, so that the misses of kLanes searches overlap. Each search
-/// makes collides()'s decisions: the same nodes, the same shapes tested
-/// (a leaf's, after the prefetch), the same answer. If intersect() throws,
-/// the exception passes on and hit[] is partly written.
+/// with kLanes of the searches interleaved (CollisionLane). A search of a
+/// large tree mostly waits for memory: each node and the shapes it reads
+/// are a miss that depends on the one before; interleaved, the misses of
+/// kLanes searches overlap. Each search makes collides()'s decisions: the
+/// same nodes, the same shapes tested (a leaf's, after the prefetch), the
+/// same answer. If intersect() throws, the exception passes on and hit[]
+/// is partly written.
 template <class T, class Tr, int W>
 void collides_each(const Core<T, Tr, W> &core, const T *shapes, std::size_t count, unsigned char *hit) {
   constexpr int kLanes = 8;
-  constexpr std::size_t kDeferred = 32; // a leaf of at most this many shapes waits for their prefetch
-  struct Search {
-    const T *shape = nullptr; // null: the lane is idle
-    unsigned char *hit = nullptr;
-    Box box;
-    Probe probe{0, 0, 0, 0, 0, 0};
-    DiskProbe disk;              // (kDisksFromCodes)
-    IndexStack stack;
-    int node = -1;               // the node the next step visits,
-    const T *leaf = nullptr;     // or, while `pending` is not 0, the leaf's shapes
-    std::uint32_t pending = 0;   // whose bits are set here: the next step tests them
-  };
-  const auto enter = [&](Search &s, int n) BVH_LAMBDA_INLINE {
-    s.node = n;
-    prefetch_lines(&core.nodes.node(n), sizeof(Node<W>));
-  };
   std::size_t next = 0;
   // Gives lane s the next search that needs the tree; false when none is left.
-  const auto start = [&](Search &s) BVH_LAMBDA_INLINE {
-    s.shape = nullptr;
+  const auto start = [&](CollisionLane<T, Tr, W> &s) BVH_LAMBDA_INLINE {
+    s.question.shape = nullptr;
     s.stack.clear();
     while (next < count) {
       const std::size_t j = next++;
@@ -114,116 +219,73 @@ void collides_each(const Core<T, Tr, W> &core, const T *shapes, std::size_t coun
         hit[j] = 0;
         continue;
       }
-      s.shape = &shapes[j];
-      s.hit = &hit[j];
-      s.box = box;
-      s.probe = Probe::inline_around(box);
-      if constexpr (kDisksFromCodes<Tr, W>) s.disk = disk_probe(core, box);
-      enter(s, core.root);
+      s.start(core, shapes[j], box, &hit[j]);
       return true;
     }
     return false;
   };
-  // One step of lane s's search; true when it has its answer.
-  const auto step = [&](Search &s) BVH_LAMBDA_INLINE -> bool {
-    if (s.pending != 0) {
-      for (; s.pending != 0; s.pending &= s.pending - 1)
-        if (core.traits.intersect(s.leaf[lowest_bit(s.pending)], *s.shape)) {
-          s.pending = 0;
-          return *s.hit = 1, true;
-        }
-    } else {
-      const Node<W> &node = core.nodes.node(s.node);
-      if (!node.is_leaf()) {
-        const unsigned enter_bits = collision_children(node, s.probe);
-        if (enter_bits != 0) {
-          enter(s, enter_children(s.stack, node, enter_bits));
-          return false;
-        }
-      } else {
-        const Span<const T> v = core.leaves.shapes(node);
-        if (v.size() <= kDeferred) {
-          std::uint32_t bits = v.size() == 32 ? ~std::uint32_t(0) : (std::uint32_t(1) << v.size()) - 1;
-          if constexpr (Node<W>::kCoded > 0) {
-            if (node.coded() == int(v.size())) {
-              if (!kDisksFromCodes<Tr, W> || !s.disk.usable) bits = node.meets(s.box, int(v.size()));
-              else if (disk_codes_hit(node, int(v.size()), s.box, s.disk, bits)) return *s.hit = 1, true;
-            }
-          }
-          if (bits != 0) {
-            for (std::uint32_t b = bits; b != 0; b &= b - 1) prefetch_lines(v.begin() + lowest_bit(b), sizeof(T));
-            s.leaf = v.begin();
-            s.pending = bits;
-            return false;
-          }
-        } else if (!each_candidate(node, v.size(), s.box, [&](std::size_t i) { return !core.traits.intersect(v[i], *s.shape); })) {
-          return *s.hit = 1, true;
-        }
-      }
-    }
-    if (s.stack.empty()) return *s.hit = 0, true;
-    enter(s, s.stack.pop());
-    return false;
-  };
-  Search lanes[kLanes];
+  CollisionLane<T, Tr, W> lanes[kLanes];
   int busy = 0;
-  for (Search &s : lanes) busy += start(s) ? 1 : 0;
+  for (CollisionLane<T, Tr, W> &s : lanes) busy += start(s) ? 1 : 0;
   while (busy > 0)
-    for (Search &s : lanes)
-      if (s.shape && step(s) && !start(s)) --busy;
+    for (CollisionLane<T, Tr, W> &s : lanes)
+      if (s.question.shape && s.step() && !start(s)) --busy;
 }
+
+/// query(box)'s and query(shape)'s test of stored shape s: its box meets
+/// `box`, and with `shape` (not null), s intersects it.
+template <class T, class Tr> BVH_ALWAYS_INLINE bool overlap_found(const Tr &traits, const T &s, const Box &box, const T *shape) {
+  return box_of(traits, s).overlaps(box) && (!shape || traits.intersect(s, *shape));
+}
+
+/// The question of query(box) (shape null) and query(shape): calls
+/// visit(s) on each stored shape s that overlap_found(), until it returns
+/// false. With `shape`, where disks are decided from codes (disk_probe), a
+/// disk that surely misses is not read and one that surely meets is not
+/// tested again.
+template <class T, class Tr, int W, class V> struct OverlapQuestion {
+  const Core<T, Tr, W> &core;
+  const Box &box;
+  const T *shape;
+  Probe probe;
+  DiskProbe disk;
+  V &visit;
+
+  BVH_ALWAYS_INLINE unsigned children(const Node<W> &node) const { return child_hits(node, probe); }
+  BVH_ALWAYS_INLINE bool leaf(int, const Node<W> &node, const Span<const T> &v) const {
+    const auto tested = [&](std::size_t i) BVH_LAMBDA_INLINE {
+      return !overlap_found(core.traits, v[i], box, shape) || visit(v[i]);
+    };
+    return with_candidates(
+        node, v.size(), box,
+        [&](std::uint32_t bits) BVH_LAMBDA_INLINE {
+          if constexpr (kDisksFromCodes<Tr, W>)
+            if (shape && disk.usable)
+              return each_disk_candidate(node, bits, disk, [&](int i, bool sure) BVH_LAMBDA_INLINE {
+                return sure ? visit(v[i]) : tested(std::size_t(i));
+              });
+          return each_bit(bits, tested);
+        },
+        [&]() BVH_LAMBDA_INLINE { return each_index(0, v.size(), tested); });
+  }
+};
 
 /// Calls visit(shape) on each shape whose box overlaps `box`, until it
 /// returns false.
 template <class T, class Tr, int W, class V> void visit_overlapping(const Core<T, Tr, W> &core, const Box &box, V &&visit) {
   if (core.root < 0 || !core.nodes.box(core.root).overlaps(box)) return;
-  const Probe probe = Probe::around(box);
-  walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-    const Node<W> &node = core.nodes.node(n);
-    if (node.is_leaf()) {
-      const Span<const T> v = core.leaves.shapes(node);
-      const bool went_on = each_candidate(node, v.size(), box, [&](std::size_t i) {
-        return !box_of(core.traits, v[i]).overlaps(box) || visit(v[i]);
-      });
-      return went_on ? 0 : kStop;
-    }
-    return child_hits(node, probe);
-  });
+  OverlapQuestion<T, Tr, W, V> question{core, box, nullptr, Probe::around(box), DiskProbe{}, visit};
+  search(core, question);
 }
 
 /// Calls visit(s) on each stored shape s that intersects `shape` (T's
 /// intersect(); only shapes whose box meets shape's are tested), in
-/// visit_overlapping()'s order, until it returns false. Where disks are
-/// decided from codes (disk_probe), a disk that surely misses is not read
-/// and one that surely meets is not tested again.
+/// visit_overlapping()'s order, until it returns false.
 template <class T, class Tr, int W, class V> void visit_intersecting(const Core<T, Tr, W> &core, const T &shape, V &&visit) {
   const Box box = box_of(core.traits, shape);
   if (core.root < 0 || !core.nodes.box(core.root).overlaps(box)) return;
-  const Probe probe = Probe::around(box);
-  const DiskProbe disk = disk_probe(core, box);
-  walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-    const Node<W> &node = core.nodes.node(n);
-    if (node.is_leaf()) {
-      const Span<const T> v = core.leaves.shapes(node);
-      const auto tested = [&](std::size_t i) {
-        return !box_of(core.traits, v[i]).overlaps(box) || !core.traits.intersect(v[i], shape) || visit(v[i]);
-      };
-      if constexpr (kDisksFromCodes<Tr, W>) {
-        if (disk.usable && node.coded() == int(v.size())) {
-          const CodeFrame f = CodeFrame::of(node.frame());
-          for (std::uint32_t bits = node.meets(box, int(v.size())); bits != 0; bits &= bits - 1) {
-            const int i = lowest_bit(bits);
-            const int sure = f.usable ? disk_decision(node, i, f, disk) : 0;
-            if (sure < 0) continue;
-            if (!(sure > 0 ? visit(v[i]) : tested(std::size_t(i)))) return kStop;
-          }
-          return 0;
-        }
-      }
-      return each_candidate(node, v.size(), box, tested) ? 0 : kStop;
-    }
-    return child_hits(node, probe);
-  });
+  OverlapQuestion<T, Tr, W, V> question{core, box, &shape, Probe::around(box), disk_probe(core, box), visit};
+  search(core, question);
 }
 
 /// visit_overlapping() suspended between the shapes it finds: walk()'s
@@ -263,16 +325,20 @@ public:
       if (node.is_leaf()) {
         const Span<const T> v = core_->leaves.shapes(node);
         next_ = v.begin();
-        last_ = v.end();
-        if constexpr (Node<W>::kCoded > 0) {
-          if (node.coded() == int(v.size())) {
-            bits_ = node.meets(box_, int(v.size()));
-            last_ = next_;
-          }
-        }
+        with_candidates(
+            node, v.size(), box_,
+            [&](std::uint32_t bits) BVH_LAMBDA_INLINE {
+              bits_ = bits;
+              last_ = next_;
+              return true;
+            },
+            [&]() BVH_LAMBDA_INLINE {
+              last_ = v.end();
+              return true;
+            });
         continue;
       }
-      const unsigned hits = child_hits(node, probe_);
+      const unsigned hits = child_hits(node, probe_); // (OverlapQuestion's children())
       if (hits != 0) {
         const int next = enter_children(stack_, node, hits);
         prefetch_stacked(core_->nodes, node, hits, next);
@@ -284,7 +350,7 @@ public:
 private:
   /// True, with at_ set, when `s` is a shape the search finds.
   bool found(const T &s) {
-    if (!box_of(core_->traits, s).overlaps(box_) || (shape_ && !core_->traits.intersect(s, *shape_))) return false;
+    if (!overlap_found(core_->traits, s, box_, shape_ ? &*shape_ : nullptr)) return false;
     at_ = &s;
     return true;
   }
@@ -300,33 +366,42 @@ private:
   const T *at_ = nullptr;
 };
 
-/// Finds a stored shape equal to `value`: its leaf and index. Only
-/// subtrees whose box holds value's box are searched.
-template <class T, class Tr, int W> bool find_equal(const Core<T, Tr, W> &core, const T &value, int &leaf, std::size_t &index) {
-  const Box box = box_of(core.traits, value);
-  if (core.root < 0 || !core.nodes.box(core.root).contains(box)) return false;
-  // A float child box is its exact box rounded outwards: it holds `box`
-  // whenever the exact one does.
-  return !walk(core.nodes, core.root, [&](int n) BVH_LAMBDA_INLINE -> unsigned {
-    const Node<W> &node = core.nodes.node(n);
-    if (node.is_leaf()) {
-      // (an equal shape has the same box: its code box meets `box`)
-      const Span<const T> v = core.leaves.shapes(node);
-      const bool missed = each_candidate(node, v.size(), box, [&](std::size_t i) {
-        if (!(v[i] == value)) return true;
-        leaf = n;
-        index = i;
-        return false;
-      });
-      return missed ? 0 : kStop;
-    }
+/// find_equal()'s question: a stored shape equal to `value`, whose box
+/// is `box`; its leaf and index when found. Only subtrees whose box holds
+/// `box` are searched: a float child box is its exact box rounded
+/// outwards, so it holds `box` whenever the exact one does.
+template <class T, class Tr, int W> struct EqualQuestion {
+  const T &value;
+  const Box &box;
+  int &found_leaf;
+  std::size_t &found_index;
+
+  BVH_ALWAYS_INLINE unsigned children(const Node<W> &node) const {
     unsigned enter = 0;
     for (int c = 0; c < node.num_children; ++c)
       enter |= unsigned(node.lo_x[c] <= box.x0 && node.lo_y[c] <= box.y0 && box.x1 <= node.hi_x[c] &&
                         box.y1 <= node.hi_y[c])
                << c;
     return enter;
-  });
+  }
+  BVH_ALWAYS_INLINE bool leaf(int n, const Node<W> &node, const Span<const T> &v) const {
+    // (an equal shape has the same box: its code box meets `box`)
+    return each_candidate(node, v.size(), box, [&](std::size_t i) BVH_LAMBDA_INLINE {
+      if (!(v[i] == value)) return true;
+      found_leaf = n;
+      found_index = i;
+      return false;
+    });
+  }
+};
+
+/// Finds a stored shape equal to `value`: its leaf and index
+/// (EqualQuestion).
+template <class T, class Tr, int W> bool find_equal(const Core<T, Tr, W> &core, const T &value, int &leaf, std::size_t &index) {
+  const Box box = box_of(core.traits, value);
+  if (core.root < 0 || !core.nodes.box(core.root).contains(box)) return false;
+  EqualQuestion<T, Tr, W> question{value, box, leaf, index};
+  return !search(core, question);
 }
 } // namespace detail
 } // namespace bvh
