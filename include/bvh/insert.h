@@ -160,6 +160,7 @@ template <class T, class Tr, int W> int find_scapegoat(const Core<T, Tr, W> &cor
   int scapegoat = -1;
   for (; a != stop; below = a, a = nodes.info(a).parent) {
     const std::size_t count = nodes.info(a).count;
+    if (count < smallest) continue; // (then lopsided() is false: no child need be read)
     std::size_t heaviest = 0;
     if (any_child) {
       const Node<W> &node = nodes.node(a);
@@ -187,7 +188,8 @@ template <class T, class Tr, int W> void rebalance(Core<T, Tr, W> &core, int sca
 
 /// One step of an insertion's descent at node n: the shape counted and
 /// `box` added there; at an inner node, the lopsided test of the step
-/// from `prev` (find_scapegoat's answer so far in `above`) and n becomes
+/// from `prev` (find_scapegoat's answer so far in `above`; before the
+/// first step prev is -1 and prev_count 0) and n becomes
 /// the child to go on to by least growth (choose_child); at a leaf,
 /// `leaf_box` gets its box before (with a margin it may exceed its
 /// shapes'). Returns true at a leaf. The one step of every descent that
@@ -203,7 +205,9 @@ BVH_ALWAYS_INLINE bool descend_step(NodeStore<W> &nodes, int &n, int &prev, int 
     nodes.extend_box(n, box);
     return true;
   }
-  if (above < 0 && prev >= 0 && lopsided(count, prev_count, smallest)) above = prev;
+  // (Before the first step prev_count is 0, so the test is false there.
+  // In this order GCC compiles the step shorter than with above < 0 first.)
+  if (lopsided(count, prev_count, smallest) && above < 0) above = prev;
   nodes.extend_box(n, box);
   prev = n;
   prev_count = count;
