@@ -72,8 +72,9 @@ public:
   LeafStore() = default;
   /// Deep copy, with the table if it is built.
   LeafStore(const LeafStore &o)
-      : pool_(o.pool_), free_ids_(o.free_ids_), id_count_(o.id_count_), settled_count_(o.id_count_), generations_(o.generations_),
-        fresh_generation_(o.fresh_generation_), constructed_generation_(o.constructed_generation_) {
+      : pool_(o.pool_), free_ids_(o.free_ids_), id_count_(o.id_count_), settled_count_(o.id_count_),
+        generations_(o.generations_), fresh_generation_(o.fresh_generation_),
+        constructed_generation_(o.constructed_generation_) {
     if (o.located()) {
       loc_ = o.loc_;
       located_.store(true, std::memory_order_relaxed);
@@ -216,8 +217,9 @@ public:
   ///    it, so no handle can become stale (an erase raises a generation,
   ///    free_erased_id());
   ///  - an id new_id() counted since settle_ids() (no id was free then)
-  ///    that is still the last one is counted no more: the count, the
-  ///    table and the generations shrink back by it;
+  ///    that is still the last one and was never erased is counted no
+  ///    more: the count, the table and the generations shrink back by it
+  ///    (an erased id's raised generation must stay);
   ///  - any other goes back on top of the free ids, the next new_id()'s.
   /// So ids given back in the reverse order new_id() gave them, with no
   /// erase between, leave the ids exactly as they were (count, free ids
@@ -226,7 +228,8 @@ public:
   void unnew_id(std::uint32_t id) noexcept {
     BVH_INVARIANT(id < id_count_, "an id given back that new_id() did not give");
     if (built()) loc_[id].leaf = -1;
-    if (id >= settled_count_ && id + std::size_t(1) == id_count_) {
+    if (id >= settled_count_ && id + std::size_t(1) == id_count_ &&
+        (generations_.empty() || generations_[id] == fresh_generation_)) {
       if (built()) loc_.pop_back();
       if (!generations_.empty()) generations_.pop_back();
       --id_count_;
