@@ -806,6 +806,92 @@ TEST(disjoint_one_thread_rethrows_a_copy_and_holds_the_loops_prefix) {
   pipelined_insert_throws<8>(base_seed() + 690);
 }
 
+// An insertion that throws gives its id back one way (LeafStore::unnew_id),
+// whether insert() or insert_disjoint() threw: the ids are then as before
+// the insertion, so the handles given after it, generations included, are
+// the loop's. On trees emptied 0 to 2 times before (each emptying raises
+// the generation of the ids given next), with the first kept candidate
+// poisoned (an empty tree) or a later one (one thread: not in a lane,
+// after whose throw the ids are not the loop's).
+template <int W> void thrown_insert_ids_are_the_loops(unsigned seed) {
+  using Tree = BVH<fragile::OnceFragile, bvh::shape_traits<fragile::OnceFragile>, W>;
+  using Handle = typename Tree::handle;
+  Maker make(seed);
+  for (int round = 0; round < std::max(6, scaled(12)); ++round) {
+    std::vector<fragile::OnceFragile> c;
+    for (const Disk &d : make.scene<Disk>(std::max(40, scaled(400)), 1.0)) c.push_back(fragile::OnceFragile(d, int(c.size())));
+    std::vector<std::size_t> kept;
+    {
+      Tree loop(4);
+      for (std::size_t i = 0; i < c.size(); ++i)
+        if (!loop.collision(c[i])) {
+          loop.insert(c[i]);
+          kept.push_back(i);
+        }
+    }
+    const std::size_t victim = round % 2 ? kept[0] : kept[std::size_t(make.rng() % kept.size())];
+    const int emptied = round % 3;
+    const unsigned threads = round % 4 == 3 ? 2u : 1u; // (2: an empty tree, serial)
+    note("BVH_SEED=" + std::to_string(seed) + " width " + std::to_string(W) + " round " + std::to_string(round) +
+         " poisoned " + std::to_string(victim) + " emptied " + std::to_string(emptied) + " threads " +
+         std::to_string(threads));
+    // The same history for both: emptied, then the loop's shapes before
+    // the victim.
+    Tree loop(4), tree(4);
+    for (Tree *t : {&loop, &tree})
+      for (int e = 0; e < emptied; ++e) {
+        std::vector<Handle> h;
+        for (std::size_t i = 0; i < 3; ++i) h.push_back(t->insert(c[kept[i % kept.size()]]));
+        for (Handle x : h) t->erase(x);
+      }
+    for (std::size_t i : kept)
+      if (i < victim) loop.insert(c[i]);
+    fragile::armed() = int(victim);
+    bool loop_threw = false;
+    try {
+      loop.insert(c[victim]);
+    } catch (const fragile::CopyBoom &) {
+      loop_threw = true;
+    }
+    CHECK(loop_threw);
+    fragile::armed() = int(victim);
+    bool thrown = false;
+    try {
+      tree.insert_disjoint(c, threads);
+    } catch (const fragile::CopyBoom &) {
+      thrown = true;
+    }
+    fragile::armed() = -1;
+    CHECK(thrown);
+    CHECK(tree.validate());
+    // Then both erase their earliest shape (its id goes to the free ids)
+    // and insert the victim and the rest: every handle given must be the
+    // loop's.
+    for (Tree *t : {&loop, &tree})
+      if (!t->empty()) t->erase(t->begin());
+    for (std::size_t i : kept)
+      if (i >= victim) {
+        const Handle a = loop.insert(c[i]), b = tree.insert(c[i]);
+        CHECK(a == b);
+        if (a != b) {
+          note("candidate " + std::to_string(i) + ": handle {" + std::to_string(b.id) + ", " + std::to_string(b.generation) +
+               "}, the loop's {" + std::to_string(a.id) + ", " + std::to_string(a.generation) + "}");
+          break;
+        }
+      }
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> held[2];
+    for (auto it = loop.begin(); it != loop.end(); ++it) held[0].push_back({it.id().id, it.id().generation});
+    for (auto it = tree.begin(); it != tree.end(); ++it) held[1].push_back({it.id().id, it.id().generation});
+    CHECK(held[0] == held[1]);
+    CHECK(tree.validate());
+  }
+}
+
+TEST(disjoint_thrown_insert_gives_its_id_back_as_insert_does) {
+  thrown_insert_ids_are_the_loops<3>(base_seed() + 700);
+  thrown_insert_ids_are_the_loops<8>(base_seed() + 710);
+}
+
 // ---------------------------------------------------------------------------
 // Const queries from several threads at once, on one tree that nobody
 // changes: each thread's answers must be the one-thread answers (and under

@@ -150,6 +150,15 @@ template <class T, class Tr, int W> void build_by_course_rule(Core<T, Tr, W> &co
 /// the loop's items hold the shape: the same comparisons, so the same
 /// order. False, having done nothing, when the build is not of that form.
 /// If it throws, the nodes and slots it made hang under `at`.
+/// Why a second build of the loop's tree stays: at widths other than 3
+/// nearly every insert that overflows a leaf builds exactly this, and
+/// the loop pays its machinery per build, not per shape, so on small
+/// builds it is most of the cost; without this function insert-heavy
+/// work at width 8 runs measurably more instructions (docs/performance.txt,
+/// "split_in_two").
+/// What keeps the two in step is test_bvh's
+/// split_in_two_builds_what_the_loop_builds (widths 2, 4, 8, random
+/// scenes, node for node).
 template <class T, class Tr, int W> bool split_in_two(Core<T, Tr, W> &core, int at, std::vector<Tagged<T>> &shapes) {
   NodeStore<W> &nodes = core.nodes;
   const std::size_t m = shapes.size();

@@ -409,12 +409,11 @@ public:
   /// supported values throws std::invalid_argument.
   handle insert(const T &shape) {
     detail::require_supported(core_.traits, shape, "insert");
-    const bool reused = !core_.leaves.free_ids().empty();
     const std::uint32_t id = core_.leaves.new_id();
     try {
       detail::insert_shape(core_, shape, id);
     } catch (...) {
-      core_.leaves.unnew_id(id, reused);
+      core_.leaves.unnew_id(id);
       core_.leaves.settle_ids();
       throw;
     }

@@ -109,7 +109,7 @@ template <class T, class Tr, int W> void insert_new(Core<T, Tr, W> &core, const 
   try {
     insert_shape(core, shape, id);
   } catch (...) {
-    core.leaves.free_id(id, core.size == 0);
+    core.leaves.unnew_id(id);
     throw;
   }
 }
@@ -370,7 +370,7 @@ void insert_pipelined(Core<T, Tr, W> &core, const std::vector<T> &candidates, co
         try {
           n = insert_at_leaf(core, core.root, c.n, c.leaf_box, c.box, candidates[keep[c.item]], id);
         } catch (...) {
-          core.leaves.free_id(id, core.size == 0);
+          core.leaves.unnew_id(id);
           for (int j = size - 1; j >= 1; --j) roll_back(at(j));
           throw;
         }
@@ -437,7 +437,7 @@ template <class T, class Tr, int W>
   }
   for (auto a = frontier.top.rbegin(); a != frontier.top.rend(); ++a) nodes.set_box(*a, core.fitted_box(*a));
   std::sort(unused.rbegin(), unused.rend());
-  for (std::size_t i : unused) core.leaves.free_id(ids[i - next], false);
+  for (std::size_t i : unused) core.leaves.unnew_id(ids[i - next]);
   std::sort(missing.begin(), missing.end());
   for (std::size_t i : missing) {
     try {
@@ -531,7 +531,7 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
         for (int i = d - 1; i >= 0 && !top_lopsided; --i) {
           const std::size_t count = nodes.info(path[i]).count + 1;
           const std::size_t below = i == d - 1 ? lane.count + 1 : nodes.info(path[i + 1]).count + 1;
-          top_lopsided = count >= smallest && lopsided(below, count);
+          top_lopsided = lopsided(below, count, smallest);
         }
         if (top_lopsided) break;
         ids.push_back(core.leaves.new_id());

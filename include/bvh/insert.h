@@ -127,13 +127,18 @@ template <int W> BVH_ALWAYS_INLINE int choose_child(const Node<W> &node, const B
 /// A child holding more than this share of its parent's shapes makes
 /// the parent lopsided (a balanced node gives each child 1 / kWidth).
 constexpr double kLopsided = 0.6;
-/// True when a child of `heaviest` shapes makes its parent of `count`
-/// lopsided.
-inline bool lopsided(std::size_t heaviest, std::size_t count) { return double(heaviest) > kLopsided * double(count); }
 /// Subtrees smaller than this are never rebuilt for balance: their
 /// imbalance costs less than the rebuild.
 template <class T, class Tr, int W> std::size_t min_rebuild(const Core<T, Tr, W> &core) {
   return std::max<std::size_t>(16, 3 * (std::size_t(core.split_threshold) + 1));
+}
+/// The one lopsided test, of every balance check (find_scapegoat, the
+/// descent's, insert_scapegoat, disjoint.h's routing): true when a node of
+/// `count` shapes is worth rebuilding for balance, given that a child of
+/// it holds `heaviest`: it has at least `smallest` shapes (min_rebuild)
+/// and that child more than kLopsided of them.
+BVH_ALWAYS_INLINE bool lopsided(std::size_t heaviest, std::size_t count, std::size_t smallest) {
+  return count >= smallest && double(heaviest) > kLopsided * double(count);
 }
 
 /// The insertion strategy, part 2, and erase's balance: scapegoat-style
@@ -155,7 +160,7 @@ template <class T, class Tr, int W> int find_scapegoat(const Core<T, Tr, W> &cor
   int scapegoat = -1;
   for (; a != stop; below = a, a = nodes.info(a).parent) {
     const std::size_t count = nodes.info(a).count;
-    if (count < smallest) continue;
+    if (count < smallest) continue; // (then lopsided() is false: no child need be read)
     std::size_t heaviest = 0;
     if (any_child) {
       const Node<W> &node = nodes.node(a);
@@ -163,7 +168,7 @@ template <class T, class Tr, int W> int find_scapegoat(const Core<T, Tr, W> &cor
     } else {
       heaviest = nodes.info(below).count; // (a is below's parent: an inner node)
     }
-    if (lopsided(heaviest, count)) scapegoat = a; // the last found is the highest
+    if (lopsided(heaviest, count, smallest)) scapegoat = a; // the last found is the highest
   }
   return scapegoat;
 }
@@ -183,12 +188,14 @@ template <class T, class Tr, int W> void rebalance(Core<T, Tr, W> &core, int sca
 
 /// One step of an insertion's descent at node n: the shape counted and
 /// `box` added there; at an inner node, the lopsided test of the step
-/// from `prev` (find_scapegoat's answer so far in `above`) and n becomes
+/// from `prev` (find_scapegoat's answer so far in `above`; before the
+/// first step prev is -1 and prev_count 0) and n becomes
 /// the child to go on to by least growth (choose_child); at a leaf,
 /// `leaf_box` gets its box before (with a margin it may exceed its
-/// shapes'). Returns true at a leaf. insert_pipelined's step; insert_below
-/// keeps the same loop written out, which GCC compiles shorter
-/// for the course's tree than a loop over this function.
+/// shapes'). Returns true at a leaf. The one step of every descent that
+/// inserts: insert_below's (insert_unbalanced's, the lanes') and
+/// insert_pipelined's. (disjoint.h's routing descends by choose_child
+/// alone: it tests its path before it changes anything.)
 template <int W>
 BVH_ALWAYS_INLINE bool descend_step(NodeStore<W> &nodes, int &n, int &prev, int &above, std::size_t &prev_count,
                                     Box &leaf_box, const Box &box, std::size_t smallest) {
@@ -198,7 +205,9 @@ BVH_ALWAYS_INLINE bool descend_step(NodeStore<W> &nodes, int &n, int &prev, int 
     nodes.extend_box(n, box);
     return true;
   }
-  if (above < 0 && prev >= 0 && prev_count >= smallest && lopsided(count, prev_count)) above = prev;
+  // (Before the first step prev_count is 0, so the test is false there.
+  // In this order GCC compiles the step shorter than with above < 0 first.)
+  if (lopsided(count, prev_count, smallest) && above < 0) above = prev;
   nodes.extend_box(n, box);
   prev = n;
   prev_count = count;
@@ -280,18 +289,7 @@ BVH_ALWAYS_INLINE int insert_below(Core<T, Tr, W> &core, int top, const Box &own
   int n = top, above = -1, prev = -1;
   std::size_t prev_count = 0;
   Box leaf_box; // the leaf's box before: with a margin it may exceed its shapes'
-  for (;;) {
-    const std::size_t count = ++nodes.info(n).count;
-    if (nodes.node(n).is_leaf()) {
-      leaf_box = nodes.box(n);
-      nodes.extend_box(n, box);
-      break;
-    }
-    if (above < 0 && prev >= 0 && prev_count >= smallest && lopsided(count, prev_count)) above = prev;
-    nodes.extend_box(n, box);
-    prev = n;
-    prev_count = count;
-    n = choose_child(nodes.node(n), box);
+  while (!descend_step(nodes, n, prev, above, prev_count, leaf_box, box, smallest)) {
   }
   if (lopsided_above) *lopsided_above = above;
   return insert_at_leaf(core, top, n, leaf_box, own, shape, id);
@@ -340,8 +338,7 @@ int insert_scapegoat(const Core<T, Tr, W> &core, int n, int lopsided_above, int 
   int found = lopsided_above;
   if (found < 0) {
     const int a = nodes.info(n).parent;
-    if (a != stop && a >= 0 && nodes.info(a).count >= min_rebuild(core) && lopsided(nodes.info(n).count, nodes.info(a).count))
-      found = a;
+    if (a != stop && a >= 0 && lopsided(nodes.info(n).count, nodes.info(a).count, min_rebuild(core))) found = a;
   }
   BVH_INVARIANT(!checked || found == find_scapegoat(core, nodes.info(n).parent, n, false, stop),
                 "the scapegoat read on the way down differs from the walk up");

@@ -72,8 +72,9 @@ public:
   LeafStore() = default;
   /// Deep copy, with the table if it is built.
   LeafStore(const LeafStore &o)
-      : pool_(o.pool_), free_ids_(o.free_ids_), id_count_(o.id_count_), generations_(o.generations_),
-        fresh_generation_(o.fresh_generation_), constructed_generation_(o.constructed_generation_) {
+      : pool_(o.pool_), free_ids_(o.free_ids_), id_count_(o.id_count_), settled_count_(o.id_count_),
+        generations_(o.generations_), fresh_generation_(o.fresh_generation_),
+        constructed_generation_(o.constructed_generation_) {
     if (o.located()) {
       loc_ = o.loc_;
       located_.store(true, std::memory_order_relaxed);
@@ -188,9 +189,10 @@ public:
   }
 
   /// A free id (one given back first), not yet located. Strong. Until
-  /// settle_ids(), every id it gives may be given back by free_id()
-  /// without allocating: the free ids keep room for them all (disjoint.h
-  /// takes many before inserting any).
+  /// settle_ids(), every id it gives may be given back (unnew_id(), or
+  /// free_erased_id() once stored and erased) without allocating: the free
+  /// ids keep room for them all (disjoint.h takes many before inserting
+  /// any).
   std::uint32_t new_id() {
     if (!free_ids_.empty()) {
       const std::uint32_t id = free_ids_.back();
@@ -207,24 +209,41 @@ public:
     ++pending_;
     return std::uint32_t(id_count_++);
   }
-  /// Undoes new_id() (of an insert that failed): the id is free again, as
-  /// it was. `reused`: new_id() took it from the free ids (they were not
-  /// empty), else it was the last one.
-  void unnew_id(std::uint32_t id, bool reused) noexcept {
+  /// The one way to undo new_id(): gives back an id it gave that no
+  /// shape stores and no handle carries (an insert that failed, or an id
+  /// insert_disjoint took and did not use). Never throws (new_id() kept
+  /// the room). The end state:
+  ///  - the id is free and keeps its generation: no handle was given with
+  ///    it, so no handle can become stale (an erase raises a generation,
+  ///    free_erased_id());
+  ///  - an id new_id() counted since settle_ids() (no id was free then)
+  ///    that is still the last one and was never erased is counted no
+  ///    more: the count, the table and the generations shrink back by it
+  ///    (an erased id's raised generation must stay);
+  ///  - any other goes back on top of the free ids, the next new_id()'s.
+  /// So ids given back in the reverse order new_id() gave them, with no
+  /// erase between, leave the ids exactly as they were (count, free ids
+  /// and their order, generations, table): insert()'s strong guarantee,
+  /// and an empty tree holds no id again.
+  void unnew_id(std::uint32_t id) noexcept {
+    BVH_INVARIANT(id < id_count_, "an id given back that new_id() did not give");
     if (built()) loc_[id].leaf = -1;
-    if (reused) {
-      free_ids_.push_back(id); // (never allocates: new_id() took it from there)
-    } else {
+    if (id >= settled_count_ && id + std::size_t(1) == id_count_ &&
+        (generations_.empty() || generations_[id] == fresh_generation_)) {
       if (built()) loc_.pop_back();
       if (!generations_.empty()) generations_.pop_back();
       --id_count_;
+      return;
     }
+    BVH_INVARIANT(free_ids_.size() < free_ids_.capacity(), "an id given back without room for it");
+    free_ids_.push_back(id);
   }
   /// The ids handed out since the last call are all stored or given back:
   /// the room new_id() kept for them goes (returned to the allocator when
   /// it is much more than the free ids need). Never throws.
   void settle_ids() noexcept {
     pending_ = 0;
+    settled_count_ = id_count_;
     if (free_ids_.capacity() > 2 * free_ids_.size() + 64) {
       try {
         free_ids_.shrink_to_fit();
@@ -237,6 +256,7 @@ public:
     BVH_INVARIANT(id_count_ == 0 && generations_.empty(), "construct() over ids in use");
     if (built()) loc_.resize(n);
     id_count_ = n;
+    settled_count_ = n;
     constructed_generation_ = fresh_generation_;
   }
   /// Room for giving one more id back (before an erase, whose
@@ -246,28 +266,21 @@ public:
     reserve_for(free_ids_, std::min(id_count_, free_ids_.size() + pending_ + 1));
     if (generations_.empty()) generations_.assign(id_count_, fresh_generation_);
   }
-  /// Gives `id` back (room for it was made: new_id(), reserve_id_back());
-  /// `none_stored`: the tree is empty, so every id is forgotten. Only for
-  /// an id no handle was given for (an insert that failed, or one
-  /// insert_disjoint took but did not use): its generation stays.
-  void free_id(std::uint32_t id, bool none_stored) noexcept {
+  /// Gives back the id of an erased shape (after reserve_id_back()): its
+  /// generation goes up, so that its handles are stale from now on, also
+  /// once a later insert reuses the id; it goes on top of the free ids.
+  /// `none_stored`: the tree is empty, so every id is forgotten instead.
+  /// Never throws.
+  void free_erased_id(std::uint32_t id, bool none_stored) noexcept {
     if (none_stored) {
       forget_ids();
       return;
     }
+    BVH_INVARIANT(id < generations_.size(), "an id given back without its generation");
+    ++generations_[id];
     if (built()) loc_[id].leaf = -1;
     BVH_INVARIANT(free_ids_.size() < free_ids_.capacity(), "an id given back without room for it");
     free_ids_.push_back(id);
-  }
-  /// free_id() for the id of an erased shape (after reserve_id_back()):
-  /// its generation goes up, so that its handles are stale from now on,
-  /// also once a later insert reuses the id.
-  void free_erased_id(std::uint32_t id, bool none_stored) noexcept {
-    if (!none_stored) {
-      BVH_INVARIANT(id < generations_.size(), "an id given back without its generation");
-      ++generations_[id];
-    }
-    free_id(id, none_stored);
   }
   /// The generation of `id` (one in use or free): a handle carries its
   /// id's generation when given, and names no shape once they differ.
@@ -375,6 +388,7 @@ public:
     free_ids_.swap(o.free_ids_);
     std::swap(id_count_, o.id_count_);
     std::swap(pending_, o.pending_);
+    std::swap(settled_count_, o.settled_count_);
     generations_.swap(o.generations_);
     std::swap(fresh_generation_, o.fresh_generation_);
     std::swap(constructed_generation_, o.constructed_generation_);
@@ -404,6 +418,7 @@ private:
     std::vector<std::uint32_t>().swap(free_ids_);
     id_count_ = 0;
     pending_ = 0;
+    settled_count_ = 0;
     located_.store(false, std::memory_order_relaxed);
   }
 
@@ -411,6 +426,7 @@ private:
   std::vector<std::uint32_t> free_ids_; // ids given back, reused first
   std::size_t id_count_ = 0;            // ids in use or free: 0 .. id_count_ - 1
   std::size_t pending_ = 0;             // ids new_id() gave since settle_ids()
+  std::size_t settled_count_ = 0;       // id_count_ at settle_ids(): ids from here up were counted since
   // Each id's generation (what its handles carry), raised when its shape is
   // erased; empty until an id is given back after an erase (every id's is
   // then fresh_generation_), so a tree never erased from keeps none.
