@@ -17,24 +17,21 @@ HEADERS := $(LIB_HEADERS)
 # Parallel jobs of make test's build (and of tests/run.sh's layers).
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 UNITS := bvh intersect dynamic moving parse threads names disjoint exceptions lazy_handles editions
-# make test builds six of the suites as one program, build/test_units
+# make test builds eight of the suites as one program, build/test_units
 # (tests/units.cpp: each suite in a namespace of its own, run as
 # build/test_units SUITE), so that the trees they share compile once per
-# flavour: about 40% less code than six programs. The two suites of
-# insert_disjoint's parallel steps, which lower its thresholds
-# (tests/lanes_probe.h), are one program too, build/test_lanes
-# (tests/lanes.cpp: build/test_lanes disjoint, build/test_lanes
-# lazy_handles). The other two stay programs of their own: their builds
-# define macros that change bvh.h (names) or replace operator new
-# (exceptions). (make build/test_bvh still builds one suite alone; make
-# check does.)
-UNITY := bvh dynamic moving intersect threads parse
+# flavour. The others stay programs of their own: test_exceptions replaces
+# operator new, test_names and test_editions have global names of their
+# own. insert_disjoint's two suites are also built alone for
+# ThreadSanitizer (tests/lanes.cpp, build/test_lanes_tsan). (make
+# build/test_bvh still builds one suite alone; make check does.)
+UNITY := bvh dynamic moving intersect threads parse disjoint lazy_handles
 LANES := disjoint lazy_handles
 SOLO := names exceptions editions
 TEST_HEADERS := tests/check.h tests/scenes.h tests/lanes_probe.h
 UNITY_SOURCES := tests/units.cpp $(UNITY:%=tests/test_%.cpp) $(TEST_HEADERS) $(HEADERS)
 LANES_SOURCES := tests/lanes.cpp $(LANES:%=tests/test_%.cpp) $(TEST_HEADERS) $(HEADERS)
-TESTS := $(BUILD)/test_units $(BUILD)/test_lanes $(SOLO:%=$(BUILD)/test_%)
+TESTS := $(BUILD)/test_units $(SOLO:%=$(BUILD)/test_%)
 # Every unit test and the CLI under AddressSanitizer + UBSan, compiled by
 # SAN_CXX. (-g1: the line tables, for the reports' file:line; full -g takes
 # a fifth longer to compile. The ThreadSanitizer builds and the fuzzer too.)
@@ -48,14 +45,14 @@ TESTS := $(BUILD)/test_units $(BUILD)/test_lanes $(SOLO:%=$(BUILD)/test_%)
 # the reader's fallback for a missing floating-point from_chars), and clang++
 # compiles them in about half g++'s time.
 SAN_CXX ?= $(CXX)
-SAN_TESTS := $(BUILD)/test_units_san $(BUILD)/test_lanes_san $(SOLO:%=$(BUILD)/test_%_san) $(BUILD)/bvh_san.out
+SAN_TESTS := $(BUILD)/test_units_san $(SOLO:%=$(BUILD)/test_%_san) $(BUILD)/bvh_san.out
 # The portable build: the sanitizer build of the unit program above is also
 # the one under -std=c++20 (libc++'s C++20 library with clang++, the
 # iterator's concept), with -DBVH_NO_SIMD (collision()'s and the nodes'
 # scalar fallback instead of SSE2) and -DBVH_NO_HUGE_PAGES (std::allocator
 # for a build's items, whose bounds ASan then sees). The default build tests
 # SSE2 and the huge-page arrays under C++17, and under ASan the other
-# programs (test_lanes_san, test_exceptions_san, ...) do too. g++'s C++20 with
+# programs (test_exceptions_san, test_names_san, bvh_san.out, ...) do too. g++'s C++20 with
 # libstdc++: test_exceptions's default build.
 UNITS_SAN_FLAGS ?= -std=c++20 -DBVH_NO_SIMD -DBVH_NO_HUGE_PAGES
 # BVH_ASSERT's misuse checks: on (the default build), off (-DNDEBUG), and a
@@ -130,13 +127,6 @@ $(BUILD)/test_units: $(UNITY_SOURCES) | $(BUILD)
 $(BUILD)/test_units_san: $(UNITY_SOURCES) | $(BUILD)
 	$(SAN_CXX) $(SANITIZE) $(UNITS_SAN_FLAGS) -Iinclude -Itests $< -o $@
 
-$(BUILD)/test_lanes: $(LANES_SOURCES) | $(BUILD)
-	$(CXX) $(UNIT_CXXFLAGS) -Iinclude -Itests $< -o $@
-	$(BUILT_MARK)
-
-$(BUILD)/test_lanes_san: $(LANES_SOURCES) | $(BUILD)
-	$(SAN_CXX) $(SANITIZE) -Iinclude -Itests $< -o $@
-
 # The sanitized CLI runs the command-line cases, all at the course's width
 # 3: it is built of CLI_COURSE, that width alone (half the compile;
 # --width 2, 4 or 8 is then an error).
@@ -189,7 +179,7 @@ $(BUILD)/check:
 # (BUILT_MARK), and the layer's two streams start beside the rest of the
 # build as soon as their programs are there. (A marker target of its own
 # would wait for a free job slot, a whole compile.)
-LONGEST := bvh.out $(BUILD)/test_units $(BUILD)/test_lanes $(BUILD)/test_exceptions
+LONGEST := bvh.out $(BUILD)/test_units $(BUILD)/test_exceptions
 test-build-longest: $(LONGEST)
 test-build-san: $(SAN_TESTS)
 test-build-gcc: $(TESTS) $(TSAN_TESTS) bvh.out $(ASSERT_TESTS) $(EXAMPLES)

@@ -211,10 +211,10 @@ unit_tests() {
   run_suite test_intersect "$BUILD/test_units" intersect
   run_suite test_dynamic "$BUILD/test_units" dynamic
   run_suite test_moving "$BUILD/test_units" moving
-  run_suite test_lazy_handles "$BUILD/test_lanes" lazy_handles
+  run_suite test_lazy_handles "$BUILD/test_units" lazy_handles
   run_suite test_parse "$BUILD/test_units" parse
   run_suite test_names "$BUILD/test_names"
-  run_suite test_disjoint "$BUILD/test_lanes" disjoint
+  run_suite test_disjoint "$BUILD/test_units" disjoint
   # Fault injection: every mutating operation at its k-th copy and allocation (issue 21).
   run_suite test_exceptions "$BUILD/test_exceptions"
   # The engine and the course's edition (the top-level bvh.h) against each other.
@@ -259,10 +259,10 @@ sanitizers() {
   BVH_TEST_SCALE=0.1 run_suite test_intersect$u "$BUILD/test_units_san" intersect
   BVH_TEST_SCALE=0.3 run_suite test_dynamic$u "$BUILD/test_units_san" dynamic
   BVH_TEST_SCALE=0.1 run_suite test_moving$u "$BUILD/test_units_san" moving
-  BVH_TEST_SCALE=0.05 run_suite test_lazy_handles$s "$BUILD/test_lanes_san" lazy_handles
+  BVH_TEST_SCALE=0.05 run_suite test_lazy_handles$u "$BUILD/test_units_san" lazy_handles
   BVH_TEST_SCALE=0.1 run_suite test_parse$u "$BUILD/test_units_san" parse
   run_suite test_names$s "$BUILD/test_names_san"
-  BVH_TEST_SCALE=0.05 run_suite test_disjoint$s "$BUILD/test_lanes_san" disjoint
+  BVH_TEST_SCALE=0.05 run_suite test_disjoint$u "$BUILD/test_units_san" disjoint
   BVH_TEST_SCALE=0.2 run_suite test_exceptions$s "$BUILD/test_exceptions_san"
   BVH_TEST_SCALE=0.2 run_suite test_editions$s "$BUILD/test_editions_san"
   # The sanitized CLI on a discard run must print what the plain one prints.
@@ -498,8 +498,8 @@ cli_threads() {
 
 # valgrind memcheck: unit tests and a bulk, an incremental and a discard run.
 # Two streams side by side, each starting as soon as its programs are built
-# (the build marks each: $BUILD/NAME.built): the suites of build/test_units,
-# then bvh.out's runs; and those of build/test_lanes and
+# (the build marks each: $BUILD/NAME.built): six suites of build/test_units,
+# then bvh.out's runs; and its two insert_disjoint suites, then
 # build/test_exceptions. The layer is the run's longest chain of work: in
 # one stream, it would end after everything else.
 VG=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=all --show-leak-kinds=all)
@@ -530,9 +530,9 @@ valgrind_units() {
     --depth_limit 6 --incremental --discard_overlap --visualize --print_tree --pairs
 }
 valgrind_lanes() {
-  wait_built test_lanes
-  BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_lanes" lazy_handles
-  BVH_TEST_SCALE=0.05 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_lanes" disjoint
+  wait_built test_units
+  BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_units" lazy_handles
+  BVH_TEST_SCALE=0.05 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_units" disjoint
   wait_built test_exceptions
   # (nouserintercepts: the test's own operator new, which injects the faults, stays in place)
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_exceptions "${VG[@]}" --soname-synonyms=somalloc=nouserintercepts \
@@ -615,11 +615,11 @@ if [ "$QUICK" = yes ]; then
   rm -f "$BUILD"/check/test_*.out # make runs each unit test again
   targets+=(check-build)
 else
-  for prog in "$BUILD/test_units" "$BUILD/test_lanes" "$BUILD/test_exceptions" bvh.out; do
+  for prog in "$BUILD/test_units" "$BUILD/test_exceptions" bvh.out; do
     rm -f "$BUILD/${prog##*/}.built"
     if $MAKE --no-print-directory -q "$prog" 2>/dev/null; then : >"$BUILD/${prog##*/}.built"; fi
   done
-  targets+=("$BUILD/test_units" "$BUILD/test_lanes" "$BUILD/test_exceptions" bvh.out "$BUILD/bvh_san.out")
+  targets+=("$BUILD/test_units" "$BUILD/test_exceptions" bvh.out "$BUILD/bvh_san.out")
   [ "$HAVE_FUZZER" = yes ] && targets+=("$BUILD/fuzz_parser_O0")
   targets+=(test-build-san test-build-gcc)
 fi
@@ -660,7 +660,7 @@ make_pid=$!
 last=$SECONDS
 while kill -0 "$make_pid" 2>/dev/null; do
   pause
-  if [ "$VALGRIND_EARLY" = no ] && [ "$QUICK" = no ] && { [ -f "$BUILD/test_units.built" ] || [ -f "$BUILD/test_lanes.built" ]; }; then
+  if [ "$VALGRIND_EARLY" = no ] && [ "$QUICK" = no ] && [ -f "$BUILD/test_units.built" ]; then
     VALGRIND_EARLY=yes
     echo "   (the first unit suites are built: valgrind starts beside the rest of the build, $((SECONDS - build_start)) s)"
     layer valgrind valgrind_layer

@@ -1,9 +1,9 @@
 // tests/units.cpp — several unit suites compiled as one program (make test's
 // build of them): tests/test_bvh.cpp, test_dynamic, test_moving,
-// test_intersect, test_threads and test_parse, each inside a namespace of its
-// own, so that the trees they share (BVH<Disk> and the rest) are compiled
-// once per build flavour instead of once per suite: about 40% less code to
-// compile than the six programs apart. The suites are unchanged and still
+// test_intersect, test_threads, test_parse, and insert_disjoint's
+// test_disjoint and test_lazy_handles, each inside a namespace of its own,
+// so that the trees they share (BVH<Disk> and the rest) are compiled once
+// per build flavour instead of once per suite. The suites are unchanged and still
 // build alone (make build/test_bvh; make check builds them so).
 //
 //   build/test_units SUITE [CASE...]    e.g. build/test_units bvh, or
@@ -12,15 +12,17 @@
 // runs one suite as its own program would (its main: the seed line, its
 // cases, "N passed, M failed").
 //
-// The suites that replace operator new or need their own build stay
-// apart: test_disjoint and test_lazy_handles (one program of their own,
-// tests/lanes.cpp), test_names and test_exceptions.
+// The suites that replace operator new or check the library beside a
+// program's own global names stay apart: test_exceptions, test_names (and
+// test_editions, which has the course's global BVH). tests/lanes.cpp
+// builds the two insert_disjoint suites alone for ThreadSanitizer.
 
 // Every header a suite includes, here first, at global scope: inside the
 // namespaces below each #include is then a no-op (include guards).
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -39,6 +41,7 @@
 #include <stdexcept>
 #include <string>
 #include <system_error>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -49,6 +52,7 @@
 #include <bvh/generate.h>
 using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unqualified
 #include "scenes.h"
+#include "lanes_probe.h"
 
 #define main suite_main
 
@@ -88,6 +92,18 @@ namespace suite_parse {
 #include "test_parse.cpp"
 }
 
+#undef CHECK_SUITE
+#define CHECK_SUITE "disjoint"
+namespace suite_disjoint {
+#include "test_disjoint.cpp"
+}
+
+#undef CHECK_SUITE
+#define CHECK_SUITE "lazy_handles"
+namespace suite_lazy_handles {
+#include "test_lazy_handles.cpp"
+}
+
 #undef main
 
 int main(int argc, char **argv) {
@@ -98,6 +114,8 @@ int main(int argc, char **argv) {
       {"intersect", &suite_intersect::suite_main},
       {"threads", &suite_threads::suite_main},
       {"parse", &suite_parse::suite_main},
+      {"disjoint", &suite_disjoint::suite_main},
+      {"lazy_handles", &suite_lazy_handles::suite_main},
   };
   return check::run_suite(argc, argv, suites);
 }
