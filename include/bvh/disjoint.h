@@ -351,9 +351,10 @@ template <class T, class Tr, int W> void pipe_roll_back_later(Core<T, Tr, W> &co
 /// The oldest insertion under way, at its leaf, finishes: its id, the
 /// leaf's push or split, and its rebalance, before which the later ones
 /// are rolled back and start again on the rebuilt tree. If it throws, the
-/// later ones are rolled back and the exception passes on.
+/// later ones are rolled back and the exception passes on. (Inlined:
+/// insert_pipelined's loop keeps the ring's state in registers.)
 template <class T, class Tr, int W>
-void pipe_finish_oldest(Core<T, Tr, W> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
+BVH_ALWAYS_INLINE void pipe_finish_oldest(Core<T, Tr, W> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
                         PipeRing &ring, std::vector<std::size_t> &kept) {
   PipeCursor &c = ring.at(0);
   const std::uint32_t id = core.leaves.new_id();
