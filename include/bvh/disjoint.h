@@ -296,127 +296,91 @@ struct PipeCursor {
   bool at_leaf;
 };
 
-/// insert_pipelined's insertions under way, oldest first, in a ring.
-struct PipeRing {
-  static constexpr int kPipe = 4; ///< insertions under way at most
-  PipeCursor ring[kPipe];
-  int head = 0, size = 0;
-  /// The k-th oldest (k < kPipe).
-  PipeCursor &at(int k) { return ring[(head + k) % kPipe]; }
-  /// The oldest is done.
-  void pop() {
-    head = (head + 1) % kPipe;
-    --size;
-  }
-};
-
-/// Cursor c starts keep[item]'s insertion at the root.
-template <class T, class Tr, int W>
-BVH_ALWAYS_INLINE void pipe_start(const Core<T, Tr, W> &core, const std::vector<T> &candidates,
-                                  const std::vector<std::size_t> &keep, PipeCursor &c, std::size_t item) {
-  c.item = item;
-  c.box = box_of(core.traits, candidates[keep[item]]);
-  c.n = core.root;
-  c.depth = 0;
-  c.prev = c.above = -1;
-  c.prev_count = 0;
-  c.at_leaf = false;
-}
-
-/// One step of cursor c's descent (descend_step), and a prefetch of what
-/// its next step reads.
-template <class T, class Tr, int W>
-BVH_ALWAYS_INLINE void pipe_step(Core<T, Tr, W> &core, PipeCursor &c, std::size_t smallest) {
-  NodeStore<W> &nodes = core.nodes;
-  if (descend_step(nodes, c.n, c.prev, c.above, c.prev_count, c.leaf_box, c.box, smallest)) {
-    c.at_leaf = true;
-    const Node<W> &leaf = nodes.node(c.n);
-    if (leaf.leaf().has_slot()) core.leaves.prefetch_end(leaf);
-    return;
-  }
-  ++c.depth;
-  prefetch_lines(&nodes.node(c.n), sizeof(Node<W>));
-  prefetch_lines(&nodes.info(c.n), sizeof(Info));
-}
-
-/// The insertions under way but the oldest give back the counts and boxes
-/// their descents raised, latest first. Never throws.
-template <class T, class Tr, int W> void pipe_roll_back_later(Core<T, Tr, W> &core, PipeRing &ring) noexcept {
-  for (int j = ring.size - 1; j >= 1; --j) {
-    const PipeCursor &c = ring.at(j);
-    undo_descent(core, c.at_leaf ? c.n : core.nodes.info(c.n).parent, -1, c.at_leaf ? &c.leaf_box : nullptr);
-  }
-}
-
-/// The oldest insertion under way, at its leaf, finishes: its id, the
-/// leaf's push or split, and its rebalance, before which the later ones
-/// are rolled back and start again on the rebuilt tree. If it throws, the
-/// later ones are rolled back and the exception passes on. (Inlined:
-/// insert_pipelined's loop keeps the ring's state in registers.)
-template <class T, class Tr, int W>
-BVH_ALWAYS_INLINE void pipe_finish_oldest(Core<T, Tr, W> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
-                        PipeRing &ring, std::vector<std::size_t> &kept) {
-  PipeCursor &c = ring.at(0);
-  const std::uint32_t id = core.leaves.new_id();
-  int n;
-  try {
-    n = insert_at_leaf(core, core.root, c.n, c.leaf_box, c.box, candidates[keep[c.item]], id);
-  } catch (...) {
-    core.leaves.free_id(id, core.size == 0);
-    pipe_roll_back_later(core, ring);
-    throw;
-  }
-  ++core.size;
-  kept.push_back(keep[c.item]);
-  const int scapegoat = insert_scapegoat(core, n, c.above, -1, ring.size == 1);
-  if (scapegoat >= 0) { // the later ones start again on the rebuilt tree
-    pipe_roll_back_later(core, ring);
-    rebalance(core, scapegoat, Cut::by_rule);
-    for (int j = 1; j < ring.size; ++j) pipe_start(core, candidates, keep, ring.at(j), ring.at(j).item);
-  }
-  ring.pop();
-}
-
 /// Step 4 on one thread: keep[i] for each i >= from inserted in order, as
 /// insert_new() one by one inserts them (the same tree, ids and
-/// statistics), with up to PipeRing::kPipe insertions under way at once so
-/// that the cache misses of their descents overlap. An insertion writes a
-/// node's count and box (and its parent's copy of the box) when it steps
-/// there, and reads the node's copies of its children's boxes; a later one
-/// steps at depth D only while every earlier one under way is at depth D +
-/// 2 or deeper, so it reads nothing they have yet to write and writes
-/// nothing they have yet to read. A leaf split changes nothing above the
-/// leaf's parent (margin 0: no box changes), and a later insertion is never
-/// that deep while the split waits. Each insertion finishes at its leaf
-/// (push or split, then its rebalance) only as the oldest under way, and
-/// before a rebuild the later ones are rolled back (their counts and boxes)
-/// and start again (pipe_finish_oldest). Needs margin 0 and an inner root.
-/// If an insertion throws, the later ones are rolled back and the exception
-/// passes on: the tree then holds the candidates before it, as the loop's
-/// does.
+/// statistics), with up to kPipe insertions under way at once so that the
+/// cache misses of their descents overlap. An insertion writes a node's
+/// count and box (and its parent's copy of the box) when it steps there,
+/// and reads the node's copies of its children's boxes; a later one steps
+/// at depth D only while every earlier one under way is at depth D + 2 or
+/// deeper, so it reads nothing they have yet to write and writes nothing
+/// they have yet to read. A leaf split changes nothing above the leaf's
+/// parent (margin 0: no box changes), and a later insertion is never that
+/// deep while the split waits. Each insertion finishes at its leaf (push
+/// or split, then its rebalance) only as the oldest under way, and before
+/// a rebuild the later ones are rolled back (their counts and boxes) and
+/// start again. Needs margin 0 and an inner root. If an insertion throws,
+/// the later ones are rolled back and the exception passes on: the tree
+/// then holds the candidates before it, as the loop's does.
 template <class T, class Tr, int W>
 void insert_pipelined(Core<T, Tr, W> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
                       std::size_t from, std::vector<std::size_t> &kept) {
   BVH_INVARIANT(core.margin == 0 && core.root >= 0 && !core.nodes.node(core.root).is_leaf(),
                 "insert_pipelined() needs margin 0 and an inner root");
+  constexpr int kPipe = 4; // insertions under way at most
+  NodeStore<W> &nodes = core.nodes;
   const std::size_t smallest = min_rebuild(core);
-  PipeRing ring;
+  PipeCursor ring[kPipe];
+  int head = 0, size = 0;
+  const auto at = [&](int k) -> PipeCursor & { return ring[(head + k) % kPipe]; };
+  const auto start = [&](PipeCursor &c, std::size_t item) {
+    c.item = item;
+    c.box = box_of(core.traits, candidates[keep[item]]);
+    c.n = core.root;
+    c.depth = 0;
+    c.prev = c.above = -1;
+    c.prev_count = 0;
+    c.at_leaf = false;
+  };
+  const auto roll_back = [&](const PipeCursor &c) noexcept {
+    undo_descent(core, c.at_leaf ? c.n : nodes.info(c.n).parent, -1, c.at_leaf ? &c.leaf_box : nullptr);
+  };
+  // One step, and a prefetch of what the cursor's next step reads.
+  const auto step = [&](PipeCursor &c) BVH_LAMBDA_INLINE {
+    if (descend_step(nodes, c.n, c.prev, c.above, c.prev_count, c.leaf_box, c.box, smallest)) {
+      c.at_leaf = true;
+      const Node<W> &leaf = nodes.node(c.n);
+      if (leaf.leaf().has_slot()) core.leaves.prefetch_end(leaf);
+      return;
+    }
+    ++c.depth;
+    prefetch_lines(&nodes.node(c.n), sizeof(Node<W>));
+    prefetch_lines(&nodes.info(c.n), sizeof(Info));
+  };
   std::size_t next = from;
-  while (ring.size > 0 || next < keep.size()) {
+  while (size > 0 || next < keep.size()) {
     int shallowest = std::numeric_limits<int>::max(); // of the earlier ones under way
-    for (int k = 0; k < ring.size; ++k) {
-      PipeCursor &c = ring.at(k);
+    for (int k = 0; k < size; ++k) {
+      PipeCursor &c = at(k);
       if (c.at_leaf && k == 0) { // the oldest finishes
-        pipe_finish_oldest(core, candidates, keep, ring, kept);
+        const std::uint32_t id = core.leaves.new_id();
+        int n;
+        try {
+          n = insert_at_leaf(core, core.root, c.n, c.leaf_box, c.box, candidates[keep[c.item]], id);
+        } catch (...) {
+          core.leaves.free_id(id, core.size == 0);
+          for (int j = size - 1; j >= 1; --j) roll_back(at(j));
+          throw;
+        }
+        ++core.size;
+        kept.push_back(keep[c.item]);
+        const int scapegoat = insert_scapegoat(core, n, c.above, -1, size == 1);
+        if (scapegoat >= 0) { // the later ones start again on the rebuilt tree
+          for (int j = size - 1; j >= 1; --j) roll_back(at(j));
+          rebalance(core, scapegoat, Cut::by_rule);
+          for (int j = 1; j < size; ++j) start(at(j), at(j).item);
+        }
+        head = (head + 1) % kPipe;
+        --size;
         --k;
         continue;
       }
-      if (!c.at_leaf && shallowest >= c.depth + 2) pipe_step(core, c, smallest);
+      if (!c.at_leaf && shallowest >= c.depth + 2) step(c);
       shallowest = std::min(shallowest, c.depth);
     }
-    if (next < keep.size() && ring.size < PipeRing::kPipe && shallowest >= 2) {
-      pipe_start(core, candidates, keep, ring.at(ring.size), next++);
-      ++ring.size;
+    if (next < keep.size() && size < kPipe && shallowest >= 2) {
+      start(at(size), next++);
+      ++size;
     }
   }
 }
