@@ -6,7 +6,12 @@
 #  - every header compiles alone (-fsyntax-only, -Wall -Wextra -pedantic
 #    -Werror) as the one include of a translation unit;
 #  - the removed tuning macros are refused with a message naming
-#    set_tuning() or DisjointSteps.
+#    set_tuning() or DisjointSteps;
+#  - the node and slot stores (node_store.h, leaf_pool.h) know nothing of
+#    threads: they bring in no <thread>, <mutex>, <atomic> or
+#    <condition_variable>, not even through another header, and declare
+#    nothing thread_local (the lanes' allocator, lane_alloc.h, is passed
+#    in).
 # Prints `ok NAME` or `FAIL NAME — why` per case (tests/run.sh's layer
 # format). Environment: CXX (default: clang++ when installed, whose
 # -fsyntax-only is the quicker, else g++), JOBS.
@@ -61,6 +66,23 @@ for m in BVH_DISK_CODES_MIN_BYTES BVH_DISJOINT_LANES_MIN BVH_DISJOINT_PROFILE; d
     echo "ok removed_macro_refused_$m"
   else
     echo "FAIL removed_macro_refused_$m — the error does not name the replacement: $(grep -m 1 error "$log")"
+  fi
+done
+
+# The stores that know nothing of threads: the standard headers each one
+# brings in, by the compiler's -H list.
+for h in node_store.h leaf_pool.h; do
+  if ! list=$(echo "#include <bvh/$h>" | $HEADERS_CXX -std=c++17 -Iinclude -x c++ -E -H - 2>&1 >/dev/null); then
+    echo "FAIL header_knows_no_threads_$h — $h does not preprocess alone"
+    continue
+  fi
+  threads=$(grep -E '[/ ](thread|mutex|atomic|condition_variable|shared_mutex|future)$' <<<"$list" |
+    sed 's#.*/\(.*\)#<\1>#' | sort -u | tr '\n' ' ')
+  if grep -q 'thread_local' "include/bvh/$h"; then threads+="thread_local "; fi
+  if [ -n "$threads" ]; then
+    echo "FAIL header_knows_no_threads_$h — $h brings in $threads"
+  else
+    echo "ok header_knows_no_threads_$h"
   fi
 done
 

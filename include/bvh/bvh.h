@@ -34,13 +34,13 @@
 //   box.h          Box, rounding to float, the supported range
 //   count_cut.h    thirds() and CountCut<W>
 //   parallel.h     parallel_for, Crew, threads_for
-//   lane_alloc.h   nodes and slots shared by insert_disjoint's lanes
 //   simd.h         Probe and the bit helpers
 //   node.h         Node<W> (one cache line) and Info
 //   node_store.h   NodeStore<W>, the one writer of a box
 //   walk.h         child_masks and walk(), the depth-first traversal
 //   leaf_pool.h    LeafPool<T>, the leaves' shapes
 //   leaf_store.h   LeafStore<T>: the pool, leaf records, ids and handles
+//   lane_alloc.h   LaneAlloc, the allocator insert_disjoint's lanes put in force
 //   build_items.h  items, keys, tasks and selection of the builds
 //   core.h         Core<T, Tr, W> and Tuning
 //   leaf_summary.h leaf codes: their writers and the decisions read from them

@@ -3,8 +3,9 @@
 // IndexStack (a traversal stack that lives on the call stack until it
 // outgrows it), InlineVector, BlockVector (blocks that never move), the
 // mapped allocator of large bookkeeping arrays, Span, Tagged (a shape with
-// its id), Scratch (memory a copy does not copy), keep_going. Knows nothing
-// of trees. Includes config.h only.
+// its id), Scratch (memory a copy does not copy), Uncopied (a pointer a
+// copy does not take), keep_going. Knows nothing of trees. Includes
+// config.h only.
 #ifndef BVH_CONTAINERS_H
 #define BVH_CONTAINERS_H
 
@@ -321,6 +322,15 @@ template <class X> struct Scratch {
   Scratch() = default;
   Scratch(const Scratch &) {}
   Scratch &operator=(const Scratch &) { return *this; }
+};
+
+/// A pointer that copies and moves of its owner do not take: they start
+/// null (a store's allocator in force is its caller's, for that store).
+template <class P> struct Uncopied {
+  P *to = nullptr;
+  Uncopied() = default;
+  Uncopied(const Uncopied &) noexcept {}
+  Uncopied &operator=(const Uncopied &) noexcept { return *this; }
 };
 
 /// f(args...) as "go on?": true unless f returns a bool false.

@@ -23,6 +23,7 @@
 #include "erase.h"
 #include "search.h"
 #include "parallel.h"
+#include "lane_alloc.h"
 
 namespace bvh {
 namespace detail {
@@ -252,10 +253,10 @@ struct Lane {
   int child_index;
   std::size_t count;                ///< the subtree's count once its routed candidates are in
   Box box;                          ///< its box then
+  Box start_box;                    ///< its box before the routing
   std::vector<std::size_t> items;   ///< routed, in input order
   std::size_t done = 0;             ///< items inserted
   std::exception_ptr error;         ///< thrown by items[done]
-  LaneCache cache;                  ///< its own nodes and slots while shared
 };
 
 /// The top of the tree for step 4: the inner nodes above depth `depth`
@@ -279,7 +280,8 @@ struct Frontier {
         for (int c = node.num_children - 1; c >= 0; --c) stack.push_back(node.child(c));
       } else {
         lane_of.push_back({n, lanes.size()});
-        lanes.push_back(Lane{nodes.info(n).parent, nodes.info(n).child_index, nodes.info(n).count, nodes.box(n), {}, 0, nullptr, {}});
+        lanes.push_back(Lane{nodes.info(n).parent, nodes.info(n).child_index, nodes.info(n).count, nodes.box(n),
+                             nodes.box(n), {}, 0, nullptr});
       }
     }
     std::sort(lane_of.begin(), lane_of.end());
@@ -297,6 +299,18 @@ void insert_serially(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
     kept.push_back(keep[i]);
   }
 }
+
+/// An insertion under way in insert_pipelined: where its descent is.
+struct PipeCursor {
+  std::size_t item;   // in keep
+  Box box;            // the shape's own (at margin 0 also what it adds to boxes)
+  int n;              // the node of its next step, or (at_leaf) the leaf it stepped at
+  int depth;          // n's
+  int prev, above;    // as in insert_below
+  std::size_t prev_count;
+  Box leaf_box;       // (at_leaf) the leaf's box before
+  bool at_leaf;
+};
 
 /// Step 4 on one thread: keep[i] for each i >= from inserted in order, as
 /// insert_new() one by one inserts them (the same tree, ids and
@@ -319,23 +333,13 @@ void insert_pipelined(Core<T, Tr, W> &core, const std::vector<T> &candidates, co
                       std::size_t from, std::vector<std::size_t> &kept) {
   BVH_INVARIANT(core.margin == 0 && core.root >= 0 && !core.nodes.node(core.root).is_leaf(),
                 "insert_pipelined() needs margin 0 and an inner root");
-  constexpr int kPipe = 4;
-  struct Cursor {
-    std::size_t item;   // in keep
-    Box box;            // the shape's own (at margin 0 also what it adds to boxes)
-    int n;              // the node of its next step, or (at_leaf) the leaf it stepped at
-    int depth;          // n's
-    int prev, above;    // as in insert_below
-    std::size_t prev_count;
-    Box leaf_box;       // (at_leaf) the leaf's box before
-    bool at_leaf;
-  };
+  constexpr int kPipe = 4; // insertions under way at most
   NodeStore<W> &nodes = core.nodes;
   const std::size_t smallest = min_rebuild(core);
-  Cursor ring[kPipe];
+  PipeCursor ring[kPipe];
   int head = 0, size = 0;
-  const auto at = [&](int k) -> Cursor & { return ring[(head + k) % kPipe]; };
-  const auto start = [&](Cursor &c, std::size_t item) {
+  const auto at = [&](int k) -> PipeCursor & { return ring[(head + k) % kPipe]; };
+  const auto start = [&](PipeCursor &c, std::size_t item) {
     c.item = item;
     c.box = box_of(core.traits, candidates[keep[item]]);
     c.n = core.root;
@@ -344,11 +348,11 @@ void insert_pipelined(Core<T, Tr, W> &core, const std::vector<T> &candidates, co
     c.prev_count = 0;
     c.at_leaf = false;
   };
-  const auto roll_back = [&](const Cursor &c) noexcept {
+  const auto roll_back = [&](const PipeCursor &c) noexcept {
     undo_descent(core, c.at_leaf ? c.n : nodes.info(c.n).parent, -1, c.at_leaf ? &c.leaf_box : nullptr);
   };
   // One step, and a prefetch of what the cursor's next step reads.
-  const auto step = [&](Cursor &c) BVH_LAMBDA_INLINE {
+  const auto step = [&](PipeCursor &c) BVH_LAMBDA_INLINE {
     if (descend_step(nodes, c.n, c.prev, c.above, c.prev_count, c.leaf_box, c.box, smallest)) {
       c.at_leaf = true;
       const Node<W> &leaf = nodes.node(c.n);
@@ -363,7 +367,7 @@ void insert_pipelined(Core<T, Tr, W> &core, const std::vector<T> &candidates, co
   while (size > 0 || next < keep.size()) {
     int shallowest = std::numeric_limits<int>::max(); // of the earlier ones under way
     for (int k = 0; k < size; ++k) {
-      Cursor &c = at(k);
+      PipeCursor &c = at(k);
       if (c.at_leaf && k == 0) { // the oldest finishes
         const std::uint32_t id = core.leaves.new_id();
         int n;
@@ -396,11 +400,6 @@ void insert_pipelined(Core<T, Tr, W> &core, const std::vector<T> &candidates, co
     }
   }
 }
-
-/// The most nodes and slots one insertion into a subtree of m shapes may
-/// allocate: a split of at most m + 1 shapes and a rebuild of as many
-/// (a build of k shapes makes fewer than 2k nodes and at most k slots).
-inline std::size_t insertion_allocations(std::size_t m) { return 6 * (m + 1) + 8; }
 
 /// Step 4 after an insertion in a lane threw: brings the tree to what the
 /// loop holds when the first candidate (in input order) whose insertion
@@ -472,6 +471,116 @@ template <int W> constexpr unsigned disjoint_lanes_threads(int split_threshold, 
   return W > kCourseWidth && split_threshold >= 16 ? 3u : 2u;
 }
 
+/// Step 4's routing: keep[next], keep[next + 1], ... routed through the
+/// frontier's top in order, each as its insertion would descend it (the
+/// top's counts and boxes raised on the way, its lane's count and box, and
+/// an id taken), until one would change the top itself (a rebuild of a
+/// lopsided top node, or a split given to a top node) or all are routed.
+/// Returns the end of those routed; `ids` gets their ids, `error` what a
+/// routing step threw (it then stops there). A lane's subtree root keeps
+/// its own count and box for the lane to raise, but the routing's later
+/// choices read its box in its parent, which must already hold the
+/// candidates routed to it: the routing sets the root's box to the lane's
+/// (set_box, both copies), and once all are routed sets it back to the box
+/// before (start_box), from which the lane grows it one insertion at a
+/// time as the loop does (a split or rebuild at the subtree's root compares
+/// the new box with the old one).
+template <class T, class Tr, int W>
+std::size_t route(Core<T, Tr, W> &core, Frontier &frontier, const std::vector<T> &candidates,
+                  const std::vector<std::size_t> &keep, std::size_t next, int depth, std::vector<std::uint32_t> &ids,
+                  std::exception_ptr &error) {
+  NodeStore<W> &nodes = core.nodes;
+  const std::size_t smallest = min_rebuild(core);
+  std::size_t end = next; // candidates [next, end) are routed
+  int path[32];
+  for (; end < keep.size(); ++end) {
+    try {
+      const Box box = core.fat(box_of(core.traits, candidates[keep[end]]));
+      int d = 0, n = core.root;
+      while (nodes.info(n).depth < depth && !nodes.node(n).is_leaf()) {
+        path[d++] = n;
+        n = choose_child(nodes.node(n), box);
+      }
+      Lane &lane = frontier.lane(n);
+      // A subtree that is one leaf and overflows would give its split
+      // to its parent, a top node (splice): the loop's change of the top.
+      bool top_lopsided = W != kCourseWidth && nodes.node(n).is_leaf() && d > 0 &&
+                          !core.is_leaf_size(lane.count + 1, nodes.info(n).depth);
+      for (int i = d - 1; i >= 0 && !top_lopsided; --i) {
+        const std::size_t count = nodes.info(path[i]).count + 1;
+        const std::size_t below = i == d - 1 ? lane.count + 1 : nodes.info(path[i + 1]).count + 1;
+        top_lopsided = lopsided(below, count, smallest);
+      }
+      if (top_lopsided) break;
+      ids.push_back(core.leaves.new_id());
+      for (int i = 0; i < d; ++i) {
+        ++nodes.info(path[i]).count;
+        nodes.extend_box(path[i], box);
+      }
+      ++lane.count;
+      lane.box.extend(box);
+      nodes.set_box(n, lane.box); // (set back to start_box below)
+      lane.items.push_back(end);
+      ++core.size;
+    } catch (...) {
+      error = std::current_exception();
+      break;
+    }
+  }
+  for (const Lane &lane : frontier.lanes)
+    if (!lane.items.empty()) nodes.set_box(nodes.node(lane.parent).child(lane.child_index), lane.start_box);
+  return end;
+}
+
+/// Step 4's lanes, once keep[next], ..., keep[end - 1] are routed (their
+/// ids ids[0], ...): each lane's candidates inserted into its subtree, in
+/// order, on the crew's threads at once while the stores have room for
+/// them (LaneAlloc: the allocator the lanes put in force), then the rest on
+/// this thread. If an insertion threw, finish_failed_lanes().
+template <class T, class Tr, int W>
+void run_lanes(Core<T, Tr, W> &core, Frontier &frontier, const std::vector<T> &candidates,
+               const std::vector<std::size_t> &keep, const std::vector<std::uint32_t> &ids, std::size_t next,
+               std::size_t end, unsigned threads, Crew &crew, DisjointClock &clock) {
+  NodeStore<W> &nodes = core.nodes;
+  std::size_t largest = 0;
+  for (const Lane &lane : frontier.lanes) largest = std::max(largest, lane.count);
+  // Leaves hold at most split_threshold shapes, except at a depth limit.
+  const std::size_t largest_leaf = core.depth_limit > 0 ? largest + 1 : std::size_t(core.split_threshold) + 1;
+  LaneAlloc<T, W> alloc(nodes, core.leaves);
+  // (without the room, the lanes run on this thread alone)
+  const bool shareable = alloc.reserve(frontier.lanes.size(), threads, largest, largest_leaf, end - next);
+  std::atomic<bool> failed{false};
+  auto run_lane = [&](std::size_t k) {
+    Lane &lane = frontier.lanes[k];
+    typename LaneAlloc<T, W>::InLane in_lane(alloc, k);
+    for (; lane.done < lane.items.size(); ++lane.done) {
+      if (failed.load(std::memory_order_relaxed) || alloc.slack_used()) return;
+      in_lane.begin_insertion();
+      const std::size_t i = lane.items[lane.done];
+      try {
+        const T &shape = candidates[keep[i]];
+        const int top = nodes.node(lane.parent).child(lane.child_index);
+        int above;
+        const int n = insert_below(core, top, box_of(core.traits, shape), shape, ids[i - next], &above);
+        rebalance(core, insert_scapegoat(core, n, above, lane.parent), Cut::by_rule);
+      } catch (...) {
+        lane.error = std::current_exception();
+        failed = true;
+        return;
+      }
+    }
+  };
+  if (shareable && threads > 1) {
+    alloc.put_in_force();
+    crew.run(frontier.lanes.size(), run_lane);
+    alloc.withdraw();
+    clock.lap(4);
+  }
+  for (std::size_t k = 0; k < frontier.lanes.size() && !failed; ++k) run_lane(k); // what is left
+  clock.lap(3);
+  if (failed) finish_failed_lanes(core, candidates, keep, frontier, ids, next);
+}
+
 /// Step 4: keep[i] inserted, in order, for every i, with exactly the loop's
 /// tree (insert_new one by one), on the crew's threads. A candidate's
 /// descent first passes the top of the tree (Frontier), then stays in one
@@ -481,20 +590,19 @@ template <int W> constexpr unsigned disjoint_lanes_threads(int split_threshold, 
 /// and then the threads insert each subtree's candidates into it, in
 /// order, one thread per subtree at a time ("lanes"). Insertions into
 /// different subtrees touch disjoint nodes, slots and ids, and their order
-/// relative to one another changes nothing; allocation takes a lock
-/// (SharedAlloc). Where the loop would change the top itself (a rebuild of
-/// a lopsided top node), routing stops: the lanes catch up, that
-/// candidate is inserted alone, and routing starts again from a new
-/// frontier. Lanes run only on a tree without margin (boxes are then always
-/// their contents' union, so nothing in a subtree refits the top) and
-/// large enough to be worth it.
+/// relative to one another changes nothing; allocation goes through the
+/// lanes' allocator (LaneAlloc). Where the loop would change the top itself
+/// (a rebuild of a lopsided top node), routing stops: the lanes catch up,
+/// that candidate is inserted alone, and routing starts again from a new
+/// frontier (a round). Lanes run only on a tree without margin (boxes are
+/// then always their contents' union, so nothing in a subtree refits the
+/// top) and large enough to be worth it.
 template <class T, class Tr, int W>
 void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, const std::vector<std::size_t> &keep,
                      unsigned threads, Crew &crew, DisjointClock &clock, std::vector<std::size_t> &kept) {
-  const std::size_t lanes_min = core.tuning.disjoint_lanes_min; // a smaller tree: serially
-  NodeStore<W> &nodes = core.nodes;
   const bool lanes_pay = threads >= disjoint_lanes_threads<W>(core.split_threshold, core.tuning.disjoint_lanes_threads);
-  if (!lanes_pay && core.margin == 0 && core.root >= 0 && !nodes.node(core.root).is_leaf()) {
+  const auto inner_root = [&] { return core.margin == 0 && core.root >= 0 && !core.nodes.node(core.root).is_leaf(); };
+  if (!lanes_pay && inner_root()) {
     insert_pipelined(core, candidates, keep, 0, kept);
     clock.lap(3);
     return;
@@ -502,122 +610,18 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
   int depth = 0; // the frontier's: about 16 subtrees a thread
   for (std::size_t lanes = 1; lanes < 16 * std::size_t(threads); lanes *= std::size_t(W)) ++depth;
   for (std::size_t next = 0; next < keep.size();) {
-    if (!lanes_pay || core.margin != 0 || core.root < 0 || nodes.node(core.root).is_leaf() || core.size < lanes_min ||
-        keep.size() - next < 64) {
+    // (a smaller tree, or a round of fewer candidates: serially)
+    if (!lanes_pay || !inner_root() || core.size < core.tuning.disjoint_lanes_min || keep.size() - next < 64) {
       insert_serially(core, candidates, keep, next, kept);
       clock.lap(3);
       return;
     }
     Frontier frontier(core, depth);
-    // Routing, until a candidate would change the top or all are routed.
-    const std::size_t smallest = min_rebuild(core);
     std::vector<std::uint32_t> ids;
-    std::size_t end = next; // candidates [next, end) are routed
     std::exception_ptr routing_error;
-    int path[32];
-    for (; end < keep.size(); ++end) {
-      try {
-        const Box box = core.fat(box_of(core.traits, candidates[keep[end]]));
-        int d = 0, n = core.root;
-        while (nodes.info(n).depth < depth && !nodes.node(n).is_leaf()) {
-          path[d++] = n;
-          n = choose_child(nodes.node(n), box);
-        }
-        Lane &lane = frontier.lane(n);
-        // A subtree that is one leaf and overflows would give its split
-        // to its parent, a top node (splice): the loop's change of the top.
-        bool top_lopsided = W != kCourseWidth && nodes.node(n).is_leaf() && d > 0 &&
-                            !core.is_leaf_size(lane.count + 1, nodes.info(n).depth);
-        for (int i = d - 1; i >= 0 && !top_lopsided; --i) {
-          const std::size_t count = nodes.info(path[i]).count + 1;
-          const std::size_t below = i == d - 1 ? lane.count + 1 : nodes.info(path[i + 1]).count + 1;
-          top_lopsided = lopsided(below, count, smallest);
-        }
-        if (top_lopsided) break;
-        ids.push_back(core.leaves.new_id());
-        for (int i = 0; i < d; ++i) {
-          ++nodes.info(path[i]).count;
-          nodes.extend_box(path[i], box);
-        }
-        // The subtree's count and box are the lane's to change; routing
-        // needs only the parent's copy of the box.
-        ++lane.count;
-        lane.box.extend(box);
-        nodes.set_parent_copy(n, lane.box);
-        lane.items.push_back(end);
-        ++core.size;
-      } catch (...) {
-        routing_error = std::current_exception();
-        break;
-      }
-    }
+    const std::size_t end = route(core, frontier, candidates, keep, next, depth, ids, routing_error);
     clock.lap(3);
-    // The lanes. The stores get room for every thread's worst insertion
-    // and for the usual allocations of all (`slack`); a lane stops when
-    // allocations have used up the slack, and finishes serially.
-    std::size_t largest = 0;
-    for (const Lane &lane : frontier.lanes) largest = std::max(largest, lane.count);
-    // Lane caches hold up to two chunks of nodes and of each class's slots.
-    // Leaves hold at most split_threshold shapes, except at a depth limit.
-    const std::size_t largest_leaf = core.depth_limit > 0 ? largest + 1 : std::size_t(core.split_threshold) + 1;
-    const std::size_t kinds = 1 + std::max(LeafPool<T>::classes_for(largest_leaf), core.leaves.class_count());
-    const std::size_t cached = 2 * LaneCache::kChunk * kinds;
-    const std::size_t slack = 16 * (end - next) + frontier.lanes.size() * cached + 1024;
-    const std::size_t room = std::size_t(threads) * (insertion_allocations(largest) + cached) + slack;
-    SharedAlloc shared;
-    std::atomic<bool> failed{false};
-    bool shareable = true;
-    try {
-      nodes.reserve_spare(room);
-      core.leaves.reserve_spare(room, largest_leaf);
-      for (Lane &lane : frontier.lanes) lane.cache.reserve(core.leaves.class_count());
-    } catch (...) {
-      shareable = false; // (then the lanes run on this thread alone)
-    }
-    auto run_lane = [&](std::size_t k) {
-      Lane &lane = frontier.lanes[k];
-      struct InLane { // (this thread's allocations go to the lane's cache meanwhile)
-        Lane &lane;
-        Core<T, Tr, W> &core;
-        InLane(Lane &l, Core<T, Tr, W> &c) : lane(l), core(c) { LaneCache::current() = &lane.cache; }
-        ~InLane() {
-          LaneCache::current() = nullptr;
-          core.nodes.take_back(lane.cache.nodes);
-          core.leaves.take_back(lane.cache.slots);
-        }
-      } in_lane(lane, core);
-      for (; lane.done < lane.items.size(); ++lane.done) {
-        if (failed.load(std::memory_order_relaxed)) return;
-        if (nodes.shared() && shared.taken.load(std::memory_order_relaxed) > slack) return;
-        const std::size_t i = lane.items[lane.done];
-        try {
-          const T &shape = candidates[keep[i]];
-          const int top = nodes.node(lane.parent).child(lane.child_index);
-          int above;
-          const int n = insert_below(core, top, box_of(core.traits, shape), shape, ids[i - next], &above);
-          rebalance(core, insert_scapegoat(core, n, above, lane.parent), Cut::by_rule);
-        } catch (...) {
-          lane.error = std::current_exception();
-          failed = true;
-          return;
-        }
-      }
-    };
-    if (shareable && threads > 1) {
-      nodes.share(&shared);
-      core.leaves.share(&shared);
-      crew.run(frontier.lanes.size(), run_lane);
-      nodes.share(nullptr);
-      core.leaves.share(nullptr);
-      for (Lane &lane : frontier.lanes) {
-        nodes.take_back(lane.cache.nodes);
-        core.leaves.take_back(lane.cache.slots);
-      }
-      clock.lap(4);
-    }
-    for (std::size_t k = 0; k < frontier.lanes.size() && !failed; ++k) run_lane(k); // what is left
-    clock.lap(3);
-    if (failed) finish_failed_lanes(core, candidates, keep, frontier, ids, next);
+    run_lanes(core, frontier, candidates, keep, ids, next, end, threads, crew, clock);
     for (std::size_t i = next; i < end; ++i) kept.push_back(keep[i]);
     next = end;
     if (routing_error) std::rethrow_exception(routing_error);
@@ -630,7 +634,79 @@ void insert_in_order(Core<T, Tr, W> &core, const std::vector<T> &candidates, con
   }
 }
 
-/// The batches of insert_disjoint (run by the crew's driver).
+/// A batch's working lists in insert_disjoint_batches, kept from one batch
+/// to the next.
+template <class T> struct Batch {
+  std::vector<unsigned char> hit;           ///< step 1: by candidate of the batch
+  std::vector<std::size_t> survivors;       ///< step 1's misses, ascending
+  std::vector<std::size_t> keep;            ///< step 3's kept survivors, ascending
+  std::vector<unsigned char> survivor_kept; ///< step 3: by survivor's rank
+  KeptBoxes kept_boxes;                     ///< keep[i]'s box, rounded once
+};
+
+/// Step 1: the candidates [start, start + m) against the tree as it stands
+/// (read only), in chunks on the crew, each chunk's searches interleaved
+/// on a large tree (collides_each); b.survivors gets those that miss it.
+template <class T, class Tr, int W>
+void search_the_tree(const Core<T, Tr, W> &core, const std::vector<T> &candidates, std::size_t start, std::size_t m,
+                     unsigned threads, Crew &crew, Batch<T> &b) {
+  const bool serial = threads == 1;
+  b.hit.assign(m, 0);
+  const std::size_t chunk = serial ? m : std::max<std::size_t>(1, std::min<std::size_t>(128, m / (4 * threads)));
+  const bool interleave = core.size >= core.tuning.disjoint_interleave_min;
+  auto query = [&](std::size_t k) {
+    const std::size_t end = std::min(m, (k + 1) * chunk);
+    if (interleave)
+      collides_each(core, candidates.data() + start + k * chunk, end - k * chunk, b.hit.data() + k * chunk);
+    else
+      for (std::size_t j = k * chunk; j < end; ++j) b.hit[j] = collides(core, candidates[start + j]) ? 1 : 0;
+  };
+  crew.run((m + chunk - 1) / chunk, query);
+  b.survivors.clear();
+  for (std::size_t j = 0; j < m; ++j)
+    if (!b.hit[j]) b.survivors.push_back(start + j);
+}
+
+/// Steps 2 and 3: b.keep gets the survivors that intersect no earlier kept
+/// one, in input order. Below `pairwise` survivors, and on one thread,
+/// each is tested against the kept ones' boxes (KeptBoxes), which costs
+/// the square of the survivors, with no sort and no pair list; else by
+/// step 2's pairs (surviving_pairs).
+template <class T, class Tr, int W>
+void keep_survivors(const Core<T, Tr, W> &core, const std::vector<T> &candidates, std::size_t pairwise,
+                    unsigned threads, Crew &crew, DisjointClock &clock, Batch<T> &b) {
+  const std::size_t s = b.survivors.size();
+  b.survivor_kept.assign(s, 0);
+  b.keep.clear();
+  if (s < pairwise || threads == 1) {
+    clock.lap(0);
+    b.kept_boxes.clear();
+    for (std::size_t r = 0; r < s; ++r) {
+      const T &c = candidates[b.survivors[r]];
+      float box[4];
+      round_out(box_of(core.traits, c), box);
+      const bool free =
+          b.kept_boxes.none_meets(box, [&](std::size_t i) { return core.traits.intersect(candidates[b.keep[i]], c); });
+      if (!free) continue;
+      b.keep.push_back(b.survivors[r]);
+      b.kept_boxes.push_back(box);
+    }
+    return;
+  }
+  const auto pairs =
+      surviving_pairs(core.traits, candidates, b.survivors, crew, threads, core.tuning.disjoint_sweep_min, clock);
+  std::size_t p = 0;
+  for (std::uint32_t r = 0; r < s; ++r) {
+    bool free = true;
+    for (; p < pairs.size() && pairs[p].second == r; ++p) free = free && !b.survivor_kept[pairs[p].first];
+    if (!free) continue;
+    b.survivor_kept[r] = 1;
+    b.keep.push_back(b.survivors[r]);
+  }
+}
+
+/// The batches of insert_disjoint (run by the crew's driver): steps 1 to 3
+/// decide a batch, step 4 inserts what they keep.
 template <class T, class Tr, int W>
 void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candidates, unsigned threads, Crew &crew,
                              std::vector<std::size_t> &kept, DisjointSteps *steps) {
@@ -638,76 +714,27 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
   // Batch sizes: starting small (on an empty tree all of the first batch
   // survives), within [kMin, kMax]; step 2 runs from kPairwise survivors.
   // On one thread a batch is only there so that its searches can run
-  // interleaved (collides_each), and steps 2 and 3 are one: each survivor
-  // is tested against the batch's kept ones (KeptBoxes), which costs the
-  // square of the survivors, with no sort and no pair list. A small batch
-  // keeps that short and the nodes its searches brought in still cached
-  // when step 4 inserts.
+  // interleaved (collides_each), and steps 2 and 3 are one
+  // (keep_survivors). A small batch keeps that short and the nodes its
+  // searches brought in still cached when step 4 inserts.
   const bool serial = threads == 1;
   const std::size_t kSerialBatch = 128;
   const std::size_t kMin = serial ? kSerialBatch : 64 * std::size_t(threads);
   const std::size_t kMax = serial ? kSerialBatch : std::size_t(1) << 17, kPairwise = 32;
   const std::size_t target = 2048 * std::size_t(threads); // survivors a batch aims at
   std::size_t batch = kMin;
-  std::vector<unsigned char> hit;
-  std::vector<std::size_t> survivors, keep;
-  std::vector<unsigned char> survivor_kept;
-  KeptBoxes kept_boxes; // keep[i]'s box, rounded once
+  Batch<T> b;
   DisjointClock clock(steps);
-  const std::size_t interleave_min = core.tuning.disjoint_interleave_min;
   for (std::size_t start = 0; start < n;) {
-    if (serial && core.size < interleave_min) { // the loop itself
+    if (serial && core.size < core.tuning.disjoint_interleave_min) { // the loop itself
       decide_as_the_loop(core, candidates, start++, kept);
       continue;
     }
     const std::size_t m = std::min(batch, n - start);
-    std::size_t s = 0; // the batch's survivors
     try {
-      // 1. Against the tree as it stands (read only).
-      hit.assign(m, 0);
-      const std::size_t chunk = serial ? m : std::max<std::size_t>(1, std::min<std::size_t>(128, m / (4 * threads)));
-      const bool interleave = core.size >= interleave_min;
-      auto query = [&](std::size_t k) {
-        const std::size_t end = std::min(m, (k + 1) * chunk);
-        if (interleave)
-          collides_each(core, candidates.data() + start + k * chunk, end - k * chunk, hit.data() + k * chunk);
-        else
-          for (std::size_t j = k * chunk; j < end; ++j) hit[j] = collides(core, candidates[start + j]) ? 1 : 0;
-      };
-      crew.run((m + chunk - 1) / chunk, query);
+      search_the_tree(core, candidates, start, m, threads, crew, b); // 1. against the tree
       clock.lap(1);
-      survivors.clear();
-      for (std::size_t j = 0; j < m; ++j)
-        if (!hit[j]) survivors.push_back(start + j);
-      s = survivors.size();
-      // 2. and 3. Among themselves, in input order.
-      survivor_kept.assign(s, 0);
-      keep.clear();
-      if (s < kPairwise || serial) {
-        clock.lap(0);
-        kept_boxes.clear();
-        for (std::size_t r = 0; r < s; ++r) {
-          const T &c = candidates[survivors[r]];
-          float b[4];
-          round_out(box_of(core.traits, c), b);
-          const bool free =
-              kept_boxes.none_meets(b, [&](std::size_t i) { return core.traits.intersect(candidates[keep[i]], c); });
-          if (!free) continue;
-          keep.push_back(survivors[r]);
-          kept_boxes.push_back(b);
-        }
-      } else {
-        const auto pairs =
-            surviving_pairs(core.traits, candidates, survivors, crew, threads, core.tuning.disjoint_sweep_min, clock);
-        std::size_t p = 0;
-        for (std::uint32_t r = 0; r < s; ++r) {
-          bool free = true;
-          for (; p < pairs.size() && pairs[p].second == r; ++p) free = free && !survivor_kept[pairs[p].first];
-          if (!free) continue;
-          survivor_kept[r] = 1;
-          keep.push_back(survivors[r]);
-        }
-      }
+      keep_survivors(core, candidates, kPairwise, threads, crew, clock, b); // 2. and 3. among themselves
     } catch (...) {
       if (!serial) throw;
       // One thread keeps the loop's behaviour exactly: the batch is decided
@@ -719,9 +746,9 @@ void insert_disjoint_batches(Core<T, Tr, W> &core, const std::vector<T> &candida
       continue;
     }
     clock.lap(3);
-    // 4. Inserted, in input order.
-    insert_in_order(core, candidates, keep, threads, crew, clock, kept);
+    insert_in_order(core, candidates, b.keep, threads, crew, clock, kept); // 4. inserted, in input order
     start += m;
+    const std::size_t s = b.survivors.size();
     if (2 * s < target) batch = std::min(kMax, 2 * batch);
     else if (s > 2 * target) batch = std::max(kMin, batch / 2);
   }

@@ -2,8 +2,9 @@
 //
 // Each leaf owns one slot, a contiguous run of shapes with their ids;
 // slots come in capacity classes kept in blocks that never move. Only a
-// slot's first size() elements are constructed. Includes containers.h and
-// lane_alloc.h.
+// slot's first size() elements are constructed. Slots come from the
+// pool's own free lists, or through the allocator a caller puts in force
+// (SlotAllocator). Includes containers.h.
 #ifndef BVH_LEAF_POOL_H
 #define BVH_LEAF_POOL_H
 
@@ -17,10 +18,26 @@
 #include <vector>
 
 #include "containers.h"
-#include "lane_alloc.h"
 
 namespace bvh {
 namespace detail {
+
+/// Where a LeafPool's slots come from while a caller puts it in force
+/// (LeafPool::set_allocator): insert_disjoint's lanes (lane_alloc.h). It
+/// takes slots of a class from the pool by take_free() and gives them
+/// back, emptied, by give_free(), at the times and in the ways it chooses.
+class SlotAllocator {
+public:
+  /// The index of an empty slot of class `cls`, for LeafPool::allocate().
+  /// Strong.
+  virtual std::uint32_t allocate_slot(std::uint32_t cls) = 0;
+  /// Takes back slot `index` of class `cls`, its shapes destroyed, for
+  /// LeafPool::release(). Never allocates.
+  virtual void release_slot(std::uint32_t cls, std::uint32_t index) noexcept = 0;
+
+protected:
+  ~SlotAllocator() = default;
+};
 
 /// The leaves' shapes: each leaf owns one slot, a contiguous run of shapes.
 /// Slot capacities are 1, 2, 4, ..., 8, then 8 steps from each power of
@@ -45,36 +62,36 @@ public:
   /// An empty slot for at least `capacity` (>= 1) shapes.
   Slot allocate(std::size_t capacity) {
     const std::uint32_t cls = class_for(capacity);
-    if (!sharing_.to) return allocate_here(cls);
-    LaneCache *own = LaneCache::current();
-    if (!own || cls >= own->slots.size()) return sharing_.locked(true, [&] { return allocate_here(cls); });
-    std::vector<std::uint32_t> &list = own->slots[cls];
-    sharing_.refill(list, [&] { return classes_[cls].allocate(); }, chunk_of(cls));
-    const Slot s{list.back(), cls};
-    list.pop_back();
-    return s;
+    if (!allocator_.to) return Slot{take_free(cls), cls};
+    return Slot{allocator_.to->allocate_slot(cls), cls};
   }
   /// Destroys the slot's shapes and gives the slot back (never throws).
   /// A class none of whose slots is in use any more then gives back its
-  /// blocks too (not while threads share the pool, whose lanes may hold
-  /// its slots): a leaf grows through the small classes once, while the
-  /// tree is young, and each would keep a block for one free slot.
+  /// blocks too (not while an allocator is in force, which may hold its
+  /// slots): a leaf grows through the small classes once, while the tree
+  /// is young, and each would keep a block for one free slot.
   void release(Slot s) noexcept {
-    LaneCache *own = sharing_.to ? LaneCache::current() : nullptr;
-    if (own && s.cls < own->slots.size()) {
-      Class &c = classes_[s.cls];
-      c.clear(s.index);
-      sharing_.give_back(own->slots[s.cls], s.index, [&](std::uint32_t i) { c.free_slots.push_back(i); },
-                         chunk_of(s.cls));
-    } else if (!sharing_.to) {
-      Class &c = classes_[s.cls];
+    Class &c = classes_[s.cls];
+    if (!allocator_.to) {
       c.release(s.index);
       if (c.free_slots.size() == c.sizes.size()) c.drop();
     } else {
-      sharing_.locked(false, [&] { classes_[s.cls].release(s.index); });
+      c.clear(s.index);
+      allocator_.to->release_slot(s.cls, s.index);
     }
   }
-  /// The number of classes (a LaneCache's lists of slots).
+  /// An empty slot of class `cls` (the class made if missing), from its
+  /// free slots first: what allocate() does, and where an allocator in
+  /// force takes its slots. Strong.
+  std::uint32_t take_free(std::uint32_t cls) {
+    while (classes_.size() <= cls) classes_.emplace_back(std::uint32_t(classes_.size()));
+    return classes_[cls].allocate();
+  }
+  /// Puts slot `index` of class `cls` (given by take_free, its shapes
+  /// destroyed) on the class's free slots. Never allocates: take_free()
+  /// made room.
+  void give_free(std::uint32_t cls, std::uint32_t index) noexcept { classes_[cls].free_slots.push_back(index); }
+  /// The number of classes.
   std::size_t class_count() const { return classes_.size(); }
   /// The classes reserve_spare(spare, largest) makes, at least.
   static std::size_t classes_for(std::size_t largest) { return std::size_t(class_for(largest)) + 2; }
@@ -82,29 +99,18 @@ public:
   void shrink_spare() noexcept {
     for (Class &c : classes_) c.shrink_spare();
   }
-  /// Takes back the slots a lane's cache holds, when its lane ends (under
-  /// the lock while shared): a lane that has ended keeps nothing, since a
-  /// cached slot of every class a leaf grew through, in every lane, is
-  /// slack.
-  void take_back(std::vector<std::vector<std::uint32_t>> &own) noexcept {
-    sharing_.locked(false, [&] {
-      for (std::size_t cls = 0; cls < own.size(); ++cls) {
-        for (std::uint32_t i : own[cls]) classes_[cls].free_slots.push_back(i); // (never allocates)
-        own[cls].clear();
-      }
-    });
-  }
   /// Room for `spare` more slots in every class up to the one of
   /// `largest` shapes (made now if missing), so that allocating them never
-  /// moves an array that other threads read.
+  /// moves an array (an allocator in force relies on it: lane_alloc.h).
   void reserve_spare(std::size_t spare, std::size_t largest) {
     const std::uint32_t top = class_for(largest) + 1; // (a full slot of `largest` moves up one)
-    classes_.reserve(std::max<std::size_t>(top + 1, 64)); // (never moved while shared)
+    classes_.reserve(std::max<std::size_t>(top + 1, 64)); // (never moved while an allocator is in force)
     while (classes_.size() <= top) classes_.emplace_back(std::uint32_t(classes_.size()));
     for (Class &c : classes_) c.reserve_spare(spare);
   }
-  /// Makes allocate() and release() take `shared`'s lock (none: nullptr).
-  void share(SharedAlloc *shared) noexcept { sharing_.to = shared; }
+  /// Makes allocate() and release() go through `allocator` (none:
+  /// nullptr). A copy of the pool starts with none.
+  void set_allocator(SlotAllocator *allocator) noexcept { allocator_.to = allocator; }
 
   /// The pool's bytes by use: the stored shapes and their ids, the places
   /// that hold neither (room in slots, free slots, unfilled blocks) and the
@@ -383,20 +389,13 @@ private:
     }
   };
 
-  /// The slots of class cls a lane takes at a time, and keeps when it
-  /// gives slots back: fewer of the larger, since what a lane keeps is
-  /// slack.
-  static std::size_t chunk_of(std::uint32_t cls) {
-    return LaneCache::kChunk >> std::min<std::size_t>(log2_floor(capacity_of(cls)), 5);
-  }
-  /// The highest bit of n >= 1.
+public:
+  /// The highest bit of n >= 1 (lane_alloc.h sizes its chunks by it).
   static std::size_t log2_floor(std::size_t n) {
     std::size_t b = 0;
     while (n >> (b + 1)) ++b;
     return b;
   }
-
-public:
   /// Steps a class's capacity takes from one power of two to the next
   /// (kSteps = 2^kStepBits).
   static constexpr std::uint32_t kStepBits = 3;
@@ -421,11 +420,6 @@ public:
   }
 
 private:
-  Slot allocate_here(std::uint32_t cls) {
-    while (classes_.size() <= cls) classes_.emplace_back(std::uint32_t(classes_.size()));
-    return Slot{classes_[cls].allocate(), cls};
-  }
-
   /// The classes, copied one by one: libc++ 14 (as on this machine) leaks a
   /// vector's buffer when an element's copy throws inside the vector's copy
   /// constructor (Class's copy allocates), and copies must not leak.
@@ -445,7 +439,7 @@ private:
     ~Classes() = default;
   };
   Classes classes_;
-  Sharing sharing_;
+  Uncopied<SlotAllocator> allocator_; // the one in force, if any
 };
 } // namespace detail
 } // namespace bvh

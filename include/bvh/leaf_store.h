@@ -375,12 +375,14 @@ public:
     clear_shapes();
     forget_ids();
   }
-  /// The pool's reserve_spare() and share() (LeafPool).
+  /// The pool's allocation side (LeafPool): reserve_spare, shrink_spare,
+  /// set_allocator and, for an allocator in force, take_free, give_free.
   void reserve_spare(std::size_t spare, std::size_t largest) { pool_.reserve_spare(spare, largest); }
-  void share(SharedAlloc *shared) noexcept { pool_.share(shared); }
+  void set_allocator(SlotAllocator *allocator) noexcept { pool_.set_allocator(allocator); }
   std::size_t class_count() const { return pool_.class_count(); }
   void shrink_spare() noexcept { pool_.shrink_spare(); }
-  void take_back(std::vector<std::vector<std::uint32_t>> &own) noexcept { pool_.take_back(own); }
+  std::uint32_t take_free_slot(std::uint32_t cls) { return pool_.take_free(cls); }
+  void give_free_slot(std::uint32_t cls, std::uint32_t index) noexcept { pool_.give_free(cls, index); }
 
   void swap(LeafStore &o) noexcept {
     std::swap(pool_, o.pool_);

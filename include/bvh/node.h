@@ -25,8 +25,7 @@ namespace detail {
 // where its shapes are. `Info` is the rest: the exact double box, parent,
 // depth and the subtree's shape count. A box is thus stored twice, the
 // exact one in the node's Info and its float copy in the parent's Node;
-// NodeStore::set_box is the only writer of both (disjoint.h's routing
-// alone writes a float copy ahead of its box: set_parent_copy).
+// NodeStore::set_box is the only writer of both.
 
 /// Children per inner node of the course's ternary tree, the default
 /// width (BVH<T, Traits, Width>).

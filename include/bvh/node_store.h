@@ -1,9 +1,9 @@
 // bvh/node_store.h — NodeStore<W>: the two arrays of nodes and the one writer of a box.
 //
-// Allocation and release of nodes (free list reused first; through the
-// lanes' caches while they run), and set_box, the only writer of both
-// copies of a box (the exact one in Info, the float one in the parent's
-// Node). Includes node.h and lane_alloc.h.
+// Allocation and release of nodes (free list reused first, or through the
+// allocator a caller puts in force: NodeAllocator), and set_box, the only
+// writer of both copies of a box (the exact one in Info, the float one in
+// the parent's Node). Includes node.h.
 #ifndef BVH_NODE_STORE_H
 #define BVH_NODE_STORE_H
 
@@ -11,10 +11,24 @@
 #include <vector>
 
 #include "node.h"
-#include "lane_alloc.h"
 
 namespace bvh {
 namespace detail {
+
+/// Where a NodeStore's nodes come from while a caller puts it in force
+/// (NodeStore::set_allocator): insert_disjoint's lanes (lane_alloc.h).
+/// It takes nodes from the store by take_free() and gives them back by
+/// give_free(), at the times and in the ways it chooses.
+class NodeAllocator {
+public:
+  /// A node index, for NodeStore::allocate(). Strong.
+  virtual int allocate_node() = 0;
+  /// Takes node n back, for NodeStore::release(). Never allocates.
+  virtual void release_node(int n) noexcept = 0;
+
+protected:
+  ~NodeAllocator() = default;
+};
 
 /// The node arrays and the list of free nodes of a tree of width W. Owns
 /// both copies of every box: set_box() writes a node's exact box and its
@@ -38,14 +52,7 @@ public:
   BVH_ALWAYS_INLINE void set_box(int n, const Box &b) {
     Info &in = info(n);
     in.box_ = b;
-    if (in.parent >= 0) set_parent_copy(n, b);
-  }
-  /// Sets only the parent's float copy of node n's box (n below the root),
-  /// ahead of n's own: disjoint.h's routing, whose lanes then grow n's box
-  /// to `b`, which puts the two copies in step again. Nothing else may
-  /// let them differ.
-  BVH_ALWAYS_INLINE void set_parent_copy(int n, const Box &b) {
-    const Info &in = info(n);
+    if (in.parent < 0) return;
     Node &p = node(in.parent);
     float f[4];
     round_out(b, f);
@@ -70,7 +77,7 @@ public:
     free_.reserve(o.nodes_.size());
     free_ = o.free_;
   }
-  NodeStore(NodeStore<W> &&) noexcept = default;
+  NodeStore(NodeStore<W> &&) noexcept = default; // (the allocator in force stays behind: Uncopied)
   NodeStore<W> &operator=(const NodeStore<W> &o) {
     NodeStore copy(o);
     swap(copy);
@@ -78,17 +85,31 @@ public:
   }
   NodeStore<W> &operator=(NodeStore<W> &&) noexcept = default;
 
-  /// A node index, from the free list first; reset() must follow. Strong:
-  /// if it throws, nothing changed.
+  /// A node index, from the free list first (or from the allocator in
+  /// force); reset() must follow. Strong: if it throws, nothing changed.
   int allocate() {
-    if (!sharing_.to) return allocate_here();
-    LaneCache *own = LaneCache::current();
-    if (!own) return sharing_.locked(true, [&] { return allocate_here(); });
-    sharing_.refill(own->nodes, [&] { return allocate_here(); }, LaneCache::kChunk / (W > 4 ? 4 : 2));
-    const int n = own->nodes.back();
-    own->nodes.pop_back();
-    return n;
+    if (!allocator_.to) return take_free();
+    return allocator_.to->allocate_node();
   }
+  /// A node from the free list, else a new one at the arrays' end: what
+  /// allocate() does, and where an allocator in force takes its nodes.
+  /// Strong.
+  int take_free() {
+    if (!free_.empty()) {
+      const int n = free_.back();
+      free_.pop_back();
+      return n;
+    }
+    reserve_for(free_, nodes_.size() + 1);
+    nodes_.reserve_one(); // (then neither emplace_back throws)
+    info_.reserve_one();
+    nodes_.emplace_back();
+    info_.emplace_back();
+    return int(nodes_.size() - 1);
+  }
+  /// Puts node n (given by take_free) on the free list. Never allocates:
+  /// take_free() made room.
+  void give_free(int n) noexcept { free_.push_back(n); }
   /// Room for `spare` more nodes in the block tables, so that allocating
   /// them never moves a table (the blocks themselves come one at a time).
   void reserve_spare(std::size_t spare) {
@@ -106,10 +127,13 @@ public:
     } catch (...) {
     }
   }
-  /// Makes allocate() and release() take `shared`'s lock (none: nullptr).
-  void share(SharedAlloc *shared) noexcept { sharing_.to = shared; }
-  /// True while allocation is shared among threads.
-  bool shared() const { return sharing_.to != nullptr; }
+  /// Makes allocate() and release() go through `allocator` (none:
+  /// nullptr). A copy of the store starts with none.
+  void set_allocator(NodeAllocator *allocator) noexcept { allocator_.to = allocator; }
+  /// True while an allocator is in force: its callers insert into
+  /// subtrees of their own (disjoint.h), so a build takes no scratch memory
+  /// of the tree's and nothing refits above such a subtree.
+  bool shared() const { return allocator_.to != nullptr; }
   /// Grows the arrays to `total` nodes (a laid-out build's).
   void resize(std::size_t total) {
     reserve_for(free_, total);
@@ -133,20 +157,10 @@ public:
   /// links stay readable until it is reused.
   void release(int n) noexcept {
     BVH_INVARIANT(!node(n).is_leaf() || !node(n).leaf().has_slot(), "a freed leaf still owns a slot");
-    // (free_ never allocates: allocate() made room)
-    if (LaneCache *own = sharing_.to ? LaneCache::current() : nullptr)
-      sharing_.give_back(own->nodes, n, [&](int m) { free_.push_back(m); });
+    if (!allocator_.to)
+      give_free(n);
     else
-      sharing_.locked(false, [&] { free_.push_back(n); });
-  }
-  /// Takes back the nodes a lane's cache holds, when its lane ends (under
-  /// the lock while shared).
-  void take_back(std::vector<int> &own) noexcept {
-    if (own.empty()) return;
-    sharing_.locked(false, [&] {
-      for (int n : own) free_.push_back(n); // (never allocates: allocate() made room)
-    });
-    own.clear();
+      allocator_.to->release_node(n);
   }
 
   /// Nodes in the arrays, live or free.
@@ -197,23 +211,10 @@ public:
   }
 
 private:
-  int allocate_here() {
-    if (!free_.empty()) {
-      const int n = free_.back();
-      free_.pop_back();
-      return n;
-    }
-    reserve_for(free_, nodes_.size() + 1);
-    nodes_.reserve_one(); // (then neither emplace_back throws)
-    info_.reserve_one();
-    nodes_.emplace_back();
-    info_.emplace_back();
-    return int(nodes_.size() - 1);
-  }
   BlockVector<Node> nodes_;
   BlockVector<Info> info_;
   std::vector<int> free_; // indices of unused nodes, reused first
-  Sharing sharing_;
+  Uncopied<NodeAllocator> allocator_; // the one in force, if any
 };
 } // namespace detail
 } // namespace bvh
