@@ -30,7 +30,7 @@ LANES := disjoint lazy_handles
 SOLO := names exceptions editions
 TEST_HEADERS := tests/check.h tests/scenes.h tests/lanes_probe.h
 UNITY_SOURCES := tests/units.cpp $(UNITY:%=tests/test_%.cpp) $(TEST_HEADERS) $(HEADERS)
-LANES_SOURCES := tests/lanes.cpp $(LANES:%=tests/test_%.cpp) $(TEST_HEADERS) $(HEADERS)
+LANES_SOURCES := tests/lanes.cpp $(LANES:%=tests/test_%.cpp) tests/test_threads.cpp $(TEST_HEADERS) $(HEADERS)
 TESTS := $(BUILD)/test_units $(SOLO:%=$(BUILD)/test_%)
 # Every unit test and the CLI under AddressSanitizer + UBSan, compiled by
 # SAN_CXX. (-g1: the line tables, for the reports' file:line; full -g takes
@@ -58,7 +58,7 @@ UNITS_SAN_FLAGS ?= -std=c++20 -DBVH_NO_SIMD -DBVH_NO_HUGE_PAGES
 # BVH_ASSERT's misuse checks: on (the default build), off (-DNDEBUG), and a
 # user's own handler that throws; construct()'s threads under ThreadSanitizer.
 ASSERT_TESTS := $(BUILD)/test_asserts $(BUILD)/test_asserts_ndebug $(BUILD)/test_asserts_throwing
-TSAN_TESTS := $(BUILD)/test_threads_tsan $(BUILD)/test_lanes_tsan
+TSAN_TESTS := $(BUILD)/test_lanes_tsan
 # examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 

@@ -1,12 +1,13 @@
-// tests/lanes.cpp — the suites of insert_disjoint's parallel steps,
-// tests/test_disjoint.cpp and tests/test_lazy_handles.cpp, compiled as one
-// program (make test's build of them), as tests/units.cpp compiles six
-// others: both build with insert_disjoint's thresholds lowered
-// (tests/lanes_probe.h), so the trees they share compile once per build
-// flavour. Each still builds alone (make build/test_disjoint; make check
-// builds them so).
+// tests/lanes.cpp — the ThreadSanitizer program (build/test_lanes_tsan):
+// the suites of insert_disjoint's parallel steps, tests/test_disjoint.cpp
+// and tests/test_lazy_handles.cpp, and construct()'s threads,
+// tests/test_threads.cpp, compiled as one program, as tests/units.cpp
+// compiles them (with the others) for the default and the sanitizer
+// builds. make test builds it with -DLANES_PROBE_LANES_THREADS=2
+// (tests/lanes_probe.h). Each suite still builds alone (make
+// build/test_disjoint; make check builds them so).
 //
-//   build/test_lanes SUITE [CASE...]    SUITE: disjoint or lazy_handles
+//   build/test_lanes_tsan SUITE [CASE...]    SUITE: disjoint, lazy_handles or threads
 //
 // runs one suite as its own program would.
 
@@ -47,12 +48,19 @@ namespace suite_lazy_handles {
 #include "test_lazy_handles.cpp"
 }
 
+#undef CHECK_SUITE
+#define CHECK_SUITE "threads"
+namespace suite_threads {
+#include "test_threads.cpp"
+}
+
 #undef main
 
 int main(int argc, char **argv) {
   static const check::Suite suites[] = {
       {"disjoint", &suite_disjoint::suite_main},
       {"lazy_handles", &suite_lazy_handles::suite_main},
+      {"threads", &suite_threads::suite_main},
   };
   return check::run_suite(argc, argv, suites);
 }

@@ -310,7 +310,7 @@ asserts() {
 # construct()'s build threads and insert_disjoint's workers (and const
 # queries from several threads) under ThreadSanitizer: a data race fails it.
 tsan() {
-  BVH_TEST_SCALE=0.25 run_suite test_threads_under_thread_sanitizer "$BUILD/test_threads_tsan"
+  BVH_TEST_SCALE=0.25 run_suite test_threads_under_thread_sanitizer "$BUILD/test_lanes_tsan" threads
   BVH_TEST_SCALE=0.03 run_suite test_disjoint_under_thread_sanitizer "$BUILD/test_lanes_tsan" disjoint
   BVH_TEST_SCALE=0.05 run_suite test_lazy_handles_under_thread_sanitizer "$BUILD/test_lanes_tsan" lazy_handles
 }
@@ -515,8 +515,8 @@ valgrind_units() {
   BVH_TEST_SCALE=0.03 run_suite valgrind_test_bvh "${VG[@]}" "$BUILD/test_units" bvh
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_threads "${VG[@]}" "$BUILD/test_units" threads
   BVH_TEST_SCALE=0.01 run_suite valgrind_test_intersect "${VG[@]}" "$BUILD/test_units" intersect
-  BVH_TEST_SCALE=0.1 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_units" dynamic
-  BVH_TEST_SCALE=0.15 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_units" moving
+  BVH_TEST_SCALE=0.05 run_suite valgrind_test_dynamic "${VG[@]}" "$BUILD/test_units" dynamic
+  BVH_TEST_SCALE=0.08 run_suite valgrind_test_moving "${VG[@]}" "$BUILD/test_units" moving
   BVH_TEST_SCALE=0.02 run_suite valgrind_test_parse "${VG[@]}" "$BUILD/test_units" parse
   wait_built bvh.out
   run_case valgrind_bulk_build "${VG[@]}" ./bvh.out -i inputs/gen_1000.triangles -o "$OUT/vg_bulk.html" \
@@ -531,8 +531,8 @@ valgrind_units() {
 }
 valgrind_lanes() {
   wait_built test_units
-  BVH_TEST_SCALE=0.1 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_units" lazy_handles
-  BVH_TEST_SCALE=0.05 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_units" disjoint
+  BVH_TEST_SCALE=0.05 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_units" lazy_handles
+  BVH_TEST_SCALE=0.02 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_units" disjoint
   wait_built test_exceptions
   # (nouserintercepts: the test's own operator new, which injects the faults, stays in place)
   BVH_TEST_SCALE=0.2 run_suite valgrind_test_exceptions "${VG[@]}" --soname-synonyms=somalloc=nouserintercepts \
