@@ -257,7 +257,7 @@ sanitizers() {
   BVH_TEST_SCALE=0.05 run_suite test_bvh$u "$BUILD/test_units_san" bvh
   BVH_TEST_SCALE=0.3 run_suite test_threads$u "$BUILD/test_units_san" threads
   BVH_TEST_SCALE=0.1 run_suite test_intersect$u "$BUILD/test_units_san" intersect
-  BVH_TEST_SCALE=0.3 run_suite test_dynamic$u "$BUILD/test_units_san" dynamic
+  BVH_TEST_SCALE=0.15 run_suite test_dynamic$u "$BUILD/test_units_san" dynamic
   BVH_TEST_SCALE=0.1 run_suite test_moving$u "$BUILD/test_units_san" moving
   BVH_TEST_SCALE=0.05 run_suite test_lazy_handles$u "$BUILD/test_units_san" lazy_handles
   BVH_TEST_SCALE=0.1 run_suite test_parse$u "$BUILD/test_units_san" parse
