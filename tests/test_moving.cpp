@@ -1027,6 +1027,139 @@ TEST(crossed_options_through_an_id_adaptor_match_the_model) {
   ran.print("id adaptor");
 }
 
+/// The game loop (docs/library.txt, MOVING SHAPES): each frame moves a
+/// random part of the shapes in the program's array first, then updates
+/// each moved one's handle, in a random order; between the updates some
+/// shapes are erased by handle and some inserted. Moves are small (inside
+/// the leaf, within the margin) or large (out of the leaf), by frame or
+/// mixed. Only after the whole batch: validate(), and collision() and
+/// query(box) against a scan of the array. `Ids`: the tree stores ids and
+/// reads the array through DiskIds (an update may meet other ids already
+/// moved, not yet updated, whose new boxes it reads); else it stores the
+/// disks, and update(h, moved) copies them.
+template <int W, bool Ids> void move_all_then_update_all(unsigned seed, double margin, int frames, Crossed &ran) {
+  using Tree = std::conditional_t<Ids, BVH<std::uint32_t, DiskIds<true>, W>, BVH<Disk, bvh::shape_traits<Disk>, W>>;
+  using Handle = typename Tree::handle;
+  const std::string where = "BVH_SEED=" + std::to_string(seed) + (Ids ? " ids" : " stored disks") + " at width " +
+                            std::to_string(W) + " margin " + std::to_string(margin);
+  note(where);
+  ++ran.configurations;
+  Maker make(seed);
+  std::mt19937 &rng = make.rng;
+  const int shapes = std::max(40, scaled(300)), probes = 8;
+  std::vector<Disk> disks; // the program's array; probes are appended after the shapes
+  disks.reserve(std::size_t(shapes) * 2 + std::size_t(frames) * (probes + 16));
+  const auto tree_of = [&]() {
+    if constexpr (Ids)
+      return Tree(W == 8 ? 16 : 4, 0, DiskIds<true>{&disks});
+    else
+      return Tree(W == 8 ? 16 : 4);
+  };
+  Tree tree = tree_of();
+  codes_at_every_size(tree).set_margin(margin);
+  const auto stored_as = [&](std::uint32_t i) {
+    if constexpr (Ids)
+      return i;
+    else
+      return disks[i];
+  };
+  std::vector<std::pair<Handle, std::uint32_t>> live; // each stored shape: its handle, its index in disks
+  const auto insert = [&](const Disk &d) {
+    disks.push_back(d);
+    const std::uint32_t i = std::uint32_t(disks.size() - 1);
+    live.push_back({tree.insert(stored_as(i)), i});
+  };
+  for (const Disk &d : make.scene<Disk>(shapes, 5)) insert(d);
+  std::string why;
+  for (int frame = 0; frame < frames; ++frame) {
+    note(where + " frame " + std::to_string(frame));
+    // 0: small moves, 1: large, 2: either, shape by shape.
+    const unsigned kind = unsigned(rng() % 3);
+    std::vector<std::size_t> moved; // indices into live
+    for (std::size_t k = 0; k < live.size(); ++k) {
+      if (rng() % 4 == 0) continue; // (most shapes move)
+      const bool large = kind == 1 || (kind == 2 && rng() % 2 == 0);
+      const double jump = large ? 300 : std::max(margin, 0.02) / 2;
+      Disk &d = disks[live[k].second];
+      d = Disk(Point(d.getCenter().x + make.coord(-jump, jump), d.getCenter().y + make.coord(-jump, jump)),
+               d.getRadius(), d.getColor());
+      moved.push_back(k);
+    }
+    std::shuffle(moved.begin(), moved.end(), rng);
+    std::vector<char> gone(live.size(), 0);
+    for (const std::size_t k : moved) {
+      if (rng() % 16 == 0) { // an erase between the updates, moved or not
+        const std::size_t e = rng() % gone.size();
+        if (!gone[e]) tree.erase(live[e].first), gone[e] = 1;
+      }
+      if (rng() % 16 == 0) {
+        Disk d;
+        make.make(d, 5);
+        insert(d);
+      }
+      if (!gone[k]) tree.update(live[k].first, stored_as(live[k].second)), ++ran.steps;
+    }
+    for (std::size_t k = gone.size(); k-- > 0;)
+      if (gone[k]) live[k] = live.back(), live.pop_back();
+    if (!tree.validate(&why) || tree.size() != live.size()) {
+      CHECK_EQ(why, std::string());
+      CHECK_EQ(tree.size(), live.size());
+      return;
+    }
+    std::vector<Disk> stored;
+    for (const auto &e : live) stored.push_back(disks[e.second]);
+    for (const Disk &p : crossed_probes(make, stored, margin, probes)) {
+      ++ran.probes;
+      disks.push_back(p);
+      const std::uint32_t probe = std::uint32_t(disks.size() - 1);
+      const BoundingBox box = p.getBox();
+      std::size_t hits = 0, boxes = 0;
+      for (const Disk &d : stored) {
+        hits += intersect(d, p) ? 1 : 0;
+        boxes += d.getBox().overlaps(box) ? 1 : 0;
+      }
+      std::size_t found = 0, wrong = 0;
+      tree.query(box, [&](const auto &v) {
+        const Disk &d = [&]() -> const Disk & {
+          if constexpr (Ids)
+            return disks[v];
+          else
+            return v;
+        }();
+        ++found, wrong += d.getBox().overlaps(box) ? 0 : 1;
+      });
+      const bool collides = tree.collision(stored_as(probe));
+      if (collides != (hits != 0) || found != boxes || wrong != 0) {
+        CHECK_EQ(key_of(p) + " collision " + std::to_string(collides) + ", query(box) " + std::to_string(found) +
+                     " (" + std::to_string(wrong) + " wrong)",
+                 key_of(p) + " collision " + std::to_string(hits != 0) + ", query(box) " + std::to_string(boxes) +
+                     " (0 wrong)");
+        return;
+      }
+    }
+  }
+}
+
+template <bool Ids> void move_all_at_widths(unsigned seed, Crossed &ran) {
+  for (const double margin : {0.0, 0.4, 6.0}) {
+    move_all_then_update_all<3, Ids>(seed++, margin, scaled(6), ran);
+    move_all_then_update_all<4, Ids>(seed++, margin, scaled(6), ran);
+    move_all_then_update_all<8, Ids>(seed++, margin, scaled(6), ran);
+  }
+}
+
+TEST(move_all_then_update_all_through_an_id_adaptor) {
+  Crossed ran;
+  move_all_at_widths<true>(base_seed() + 4400, ran);
+  ran.print("ids, move all then update all");
+}
+
+TEST(move_all_then_update_all_with_stored_disks) {
+  Crossed ran;
+  move_all_at_widths<false>(base_seed() + 4500, ran);
+  ran.print("stored disks, move all then update all");
+}
+
 } // namespace
 
 int main(int argc, char **argv) { return run_all_tests(argc, argv); }
