@@ -13,13 +13,11 @@
 #    nothing thread_local (the lanes' allocator, lane_alloc.h, is passed
 #    in).
 # Prints `ok NAME` or `FAIL NAME — why` per case (tests/run.sh's layer
-# format). Environment: CXX (default: clang++ when installed, whose
-# -fsyntax-only is the quicker, else g++), JOBS.
+# format). Environment: HEADERS_CXX (default: CXX, else g++, whose
+# -fsyntax-only is the quicker here), JOBS.
 set -u
 cd "$(dirname "$0")/.."
-if [ -z "${HEADERS_CXX:-}" ]; then
-  if command -v clang++ >/dev/null 2>&1; then HEADERS_CXX=clang++; else HEADERS_CXX=${CXX:-g++}; fi
-fi
+HEADERS_CXX=${HEADERS_CXX:-${CXX:-g++}}
 JOBS=${JOBS:-2}
 out=${1:-build/test-out/headers}
 mkdir -p "$out"
