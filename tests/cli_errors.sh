@@ -320,12 +320,18 @@ fi
 # signal ignored at the start stays ignored.)
 awk 'BEGIN { srand(7); for (i = 0; i < 50000; i++)
   printf "pt= <%.1f %.1f> radius= 0.5 color= {1 2 3}\n", 1 + rand() * 998, 1 + rand() * 998 }' >"$dir/big.disks"
+# The runs below start with SIGINT at its default action: a shell that
+# starts a background job, or a runner started in the background, may
+# hand it down ignored, and bvh.out keeps a signal its caller ignores.
+# (env --default-signal: coreutils 8.31 and later.)
+default_signals=()
+env --default-signal=INT true 2>/dev/null && default_signals=(env --default-signal=INT)
 signal_removes_partial() { # NAME SIGNAL STATUS
   local name=$1$tag sig=$2 status=$3 try i rc pid seen=no
   for try in 1 2 3; do
     rm -f "$o" "$o.partial"
     set -m
-    "$bin" -i "$dir/big.disks" -o "$o" --visualize >/dev/null 2>"$dir/stderr" &
+    "${default_signals[@]}" "$bin" -i "$dir/big.disks" -o "$o" --visualize >/dev/null 2>"$dir/stderr" &
     pid=$!
     set +m
     for ((i = 0; i < 6000; i++)); do # (at most a minute)
@@ -360,7 +366,7 @@ if strace -o /dev/null true 2>/dev/null; then
   rm -f "$dir/g.disks" "$dir/g.disks.partial"
   set -m
   strace -f -o /dev/null -e trace=write,writev -e inject=write,writev:delay_enter=1000000 \
-    "$bin" --generate disks 1000 --overlap -o "$dir/g.disks" 2>"$dir/stderr" &
+    "${default_signals[@]}" "$bin" --generate disks 1000 --overlap -o "$dir/g.disks" 2>"$dir/stderr" &
   tracer=$!
   set +m
   for ((i = 0; i < 3000; i++)); do
