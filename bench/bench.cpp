@@ -174,7 +174,8 @@ double clock_cost() {
   return std::chrono::duration<double>(t - t0).count() / kReads;
 }
 
-template <class T, int W = 3> Outcome discard_ours(const std::vector<T> &c, int depth_limit, int split = 4) {
+template <class T, int W = bvh::course_width>
+Outcome discard_ours(const std::vector<T> &c, int depth_limit, int split = bvh::course_split_threshold) {
   Outcome o;
   const double cost = phases ? clock_cost() : 0;
   Timer timer;
@@ -233,7 +234,7 @@ template <class T> Outcome discard_ours_par(const std::vector<T> &c, unsigned th
   bvh::DisjointSteps steps;
   Timer timer;
   const double cpu_start = cpu_now();
-  BVH<T> tree(4, 0);
+  CourseBVH<T> tree(4, 0);
   const std::vector<std::size_t> kept = tree.insert_disjoint(c, threads, &steps);
   o.seconds = timer.stop();
   o.ids.assign(kept.begin(), kept.end());
@@ -288,9 +289,9 @@ double available_parallelism() {
 }
 
 /// `threads`: construct()'s build threads (0: its default, hardware concurrency).
-template <class T, int W = 3>
+template <class T, int W = bvh::course_width>
 Outcome bulk_ours(const std::vector<T> &base, const std::vector<T> &probes, int depth_limit, unsigned threads = 0,
-                  int split = 4) {
+                  int split = bvh::course_split_threshold) {
   Outcome o;
   Timer timer;
   BVH<T, bvh::shape_traits<T>, W> tree(split, depth_limit);
@@ -490,16 +491,21 @@ struct Method {
   std::string missing; // why not, when unavailable
 };
 
+// ours-w8k32 is the library's default tree, BVH<T> (defaults.h); "ours"
+// and its variants the course's, CourseBVH<T>.
+static_assert(bvh::default_width == 8 && bvh::default_split_threshold == 32,
+              "the default tree changed: rename ours-w8k32 and its labels");
+static_assert(bvh::course_width == 3 && bvh::course_split_threshold == 4, "the course's tree is width 3, split 4");
 std::vector<Method> all_methods() {
   return {
-      {"ours", "ours BVH(4, unlimited)", true, ""},
-      {"ours-1t", "ours BVH(4), 1 build thread", true, ""}, // bulk workloads only
-      {"ours-d8", "ours BVH(4, depth 8)", true, ""},
+      {"ours", "ours course BVH(4, unlimited)", true, ""},
+      {"ours-1t", "ours course BVH(4), 1 build thread", true, ""}, // bulk workloads only
+      {"ours-d8", "ours course BVH(4, depth 8)", true, ""},
       {"ours-w4", "ours width 4, BVH(4)", true, ""},
       {"ours-w8", "ours width 8, BVH(4)", true, ""},
       {"ours-w8k8", "ours width 8, BVH(8)", true, ""},
       {"ours-w8k16", "ours width 8, BVH(16)", true, ""},
-      {"ours-w8k32", "ours width 8, BVH(32)", true, ""},
+      {"ours-w8k32", "ours default: width 8, BVH(32)", true, ""},
       {"ours-w8k64", "ours width 8, BVH(64)", true, ""},
       {"ours-w8k32-s1", "ours w8 k32 disjoint(c,1)", true, ""}, // discard workloads only
       {"ours-w8k32-all", "ours w8 k32 disjoint(c,0)", true, ""}, // discard workloads only
@@ -523,7 +529,7 @@ template <class T> bool run_discard(const std::string &m, const std::vector<T> &
   else if (m == "ours-w8") o = discard_ours<T, 8>(c, 0);
   else if (m == "ours-w8k8") o = discard_ours<T, 8>(c, 0, 8);
   else if (m == "ours-w8k16") o = discard_ours<T, 8>(c, 0, 16);
-  else if (m == "ours-w8k32") o = discard_ours<T, 8>(c, 0, 32);
+  else if (m == "ours-w8k32") o = discard_ours<T, bvh::default_width>(c, 0, bvh::default_split_threshold);
   else if (m == "ours-w8k64") o = discard_ours<T, 8>(c, 0, 64);
   else if (m == "ours-w8k32-s1") o = discard_ours_sampled<T, 8>(c, 32);
   else if (m == "ours-w8k32-all") o = discard_ours_sampled<T, 8>(c, 32, 0);
@@ -552,7 +558,7 @@ template <class T> bool run_bulk(const std::string &m, const std::vector<T> &bas
   else if (m == "ours-w8") o = bulk_ours<T, 8>(base, probes, 0);
   else if (m == "ours-w8k8") o = bulk_ours<T, 8>(base, probes, 0, 0, 8);
   else if (m == "ours-w8k16") o = bulk_ours<T, 8>(base, probes, 0, 0, 16);
-  else if (m == "ours-w8k32") o = bulk_ours<T, 8>(base, probes, 0, 0, 32);
+  else if (m == "ours-w8k32") o = bulk_ours<T, bvh::default_width>(base, probes, 0, 0, bvh::default_split_threshold);
   else if (m == "ours-w8k64") o = bulk_ours<T, 8>(base, probes, 0, 0, 64);
 #if BENCH_HAVE_BOOST
   else if (m == "boost-quad16") o = bulk_boost<bgi::quadratic<16>>(base, probes);
@@ -953,12 +959,12 @@ template <class T> void memory_parts(const std::vector<T> &kept, std::ostream &o
   };
   out << "  bytes per kept shape by part (BVH::memory(); sizeof(T) = " << sizeof(T)
       << "), and the fill factor (BVH::fill(): mean children / width, mean shapes / split_threshold):\n";
-  BVH<T> tree(4, 0);
+  CourseBVH<T> tree(4, 0);
   for (const T &s : kept) tree.insert(s);
   line("the loop's tree", tree);
-  (void)tree.contains(typename BVH<T>::handle{0});
+  (void)tree.contains(typename CourseBVH<T>::handle{0});
   line("after a handle lookup", tree);
-  BVH<T> built(4, 0);
+  CourseBVH<T> built(4, 0);
   built.construct(kept);
   const auto b = line("construct()", built);
   out << "    construct()'s transient build memory (its items, freed when it returns): "
@@ -990,7 +996,7 @@ struct Quality {
   bool finished = true;
 };
 
-template <class T> Quality quality_of(const BVH<T> &tree) {
+template <class T> Quality quality_of(const CourseBVH<T> &tree) {
   Quality q;
   std::ostringstream s;
   tree.statistics(s, false);
@@ -1015,7 +1021,7 @@ Quality build_quality(const std::vector<Disk> &shapes, int mode, double budget, 
   Quality q;
   const Measured res = measure(
       [&]() {
-        BVH<Disk> tree(4, 0);
+        CourseBVH<Disk> tree(4, 0);
         std::vector<Disk> order = shapes;
         if (mode == 1) {
           std::mt19937_64 rng(12345);

@@ -64,7 +64,7 @@ template <class F> double median_time(int runs, F &&f, std::size_t &count) {
 
 /// construct() + count_overlapping_pairs() at width W, split_threshold `split`.
 template <int W = 3> std::size_t pairs_ours(const std::vector<Disk> &v, int split = 4) {
-  BVH<Disk, bvh::shape_traits<Disk>, W> tree(split, BVH<Disk>::unlimited);
+  BVH<Disk, bvh::shape_traits<Disk>, W> tree(split, CourseBVH<Disk>::unlimited);
   tree.construct(v);
   return tree.count_overlapping_pairs();
 }
@@ -155,7 +155,7 @@ void pairs_row(const char *scene, const std::vector<Disk> &v, int runs) {
   if (v.size() <= 20000) row("brute force O(n^2)", median_time(runs, [&] { return pairs_brute(v); }, count));
 }
 
-double sah(const BVH<Disk> &tree) {
+double sah(const CourseBVH<Disk> &tree) {
   std::ostringstream out;
   tree.statistics(out, false);
   double inner = 0, leaf = 0;
@@ -173,13 +173,13 @@ void churn(std::size_t n, std::size_t ops, std::uint64_t seed) {
               "bulk h", "us/erase");
   std::mt19937_64 rng(seed);
   std::vector<Disk> live = random_disks(n, 0.5, 2, seed);
-  BVH<Disk> tree(4, BVH<Disk>::unlimited);
+  CourseBVH<Disk> tree(4, CourseBVH<Disk>::unlimited);
   for (const Disk &d : live) tree.insert(d);
   std::size_t done = 0;
   double erase_seconds = 0;
   const std::size_t step = ops / 5;
   for (int checkpoint = 0; checkpoint <= 5; ++checkpoint) {
-    BVH<Disk> bulk(4, BVH<Disk>::unlimited);
+    CourseBVH<Disk> bulk(4, CourseBVH<Disk>::unlimited);
     bulk.construct(live);
     std::printf("%12zu %10.3f %10.3f %8.3f %8d %8d %12.3f\n", done, sah(tree), sah(bulk), sah(tree) / sah(bulk),
                 tree.height(), bulk.height(), done ? 1e6 * erase_seconds / double(done) : 0.0);

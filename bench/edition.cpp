@@ -98,8 +98,8 @@ template <class T> void builders_on(const std::string &folder, const std::string
   sah.set_build_rule(::BVH<T>::BuildRule::sah);
   course.construct(shapes);
   sah.construct(shapes);
-  bvh::BVH<T> engine_sah(4, deep);
-  engine_sah.set_build_rule(bvh::BVH<T>::BuildRule::sah);
+  bvh::CourseBVH<T> engine_sah(4, deep);
+  engine_sah.set_build_rule(bvh::CourseBVH<T>::BuildRule::sah);
   engine_sah.construct(shapes);
   const double c = sah_cost(course), s = sah_cost(sah), e = sah_cost(engine_sah);
   std::printf("  %-24s %8.3f %8.3f %7.3f %10.3f %7.3f\n", name.c_str(), c, s, s / c, e, e / c);
@@ -121,7 +121,7 @@ int main(int argc, char **argv) {
     const std::vector<Disk> disks = random_disks(n, 2, 7.5, 20261207 + n);
     std::size_t kept_edition = 0, kept_engine = 0, kept_scan = 0;
     const double te = median_time(runs, [&] { kept_edition = sample<::BVH<Disk>>(disks); });
-    const double tg = median_time(runs, [&] { kept_engine = sample<bvh::BVH<Disk>>(disks); });
+    const double tg = median_time(runs, [&] { kept_engine = sample<bvh::CourseBVH<Disk>>(disks); });
     double ts = 0;
     if (n <= 100000) ts = median_time(n >= 100000 ? 1 : runs, [&] { kept_scan = scan(disks); });
     if (kept_engine != kept_edition || (n <= 100000 && kept_scan != kept_edition)) {

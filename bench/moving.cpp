@@ -36,7 +36,7 @@
 // whose own count is odd, or, for ours, whose validate() is false or whose
 // get(h[i]) is not disk i's last position) is marked WRONG in the table, and
 // the program exits 1 after printing every table. Methods:
-//   ours m=M       BVH<Disk>(4, 0), set_margin(M), construct(); per frame
+//   ours m=M       CourseBVH<Disk>(4, 0), set_margin(M), construct(); per frame
 //                  update(h[i], moved) per disk, then query(disk, f) per disk
 //   Box2D          b2DynamicTree: CreateProxy per disk; per frame
 //                  MoveProxy(id, box, displacement) (a teleport passes a zero

@@ -24,6 +24,7 @@
 #include <cstdio>
 #include <string>
 
+#include <bvh/defaults.h>
 #include <bvh/shapes.h>
 
 namespace bvh_cli {
@@ -53,13 +54,13 @@ struct UsageError {
 
 struct Options {
   std::string input, output;
-  int split_threshold = 4;
+  int split_threshold = bvh::course_split_threshold; // the course's tree unless told otherwise
   int depth_limit = 0; // 0: unlimited, and no statistics (the course's default)
   bool incremental = false, discard_overlap = false, visualize = false, print_tree = false, pairs = false;
   bool no_output = false; // --no_output: no picture
   bool sah = false; // --build sah
   unsigned threads = 0; // --threads N (0: all cores)
-  int width = 3;        // --width W
+  int width = bvh::course_width; // --width W
   bool generate = false, overlap = false;
   std::string kind;
   long count = 0;

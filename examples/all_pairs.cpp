@@ -21,7 +21,7 @@ int main() {
     if (i % 3 == 2)
       scene.push_back(Quad(Point(c.x - r, c.y - r), Point(c.x + r, c.y - r), Point(c.x + r, c.y + r), Point(c.x - r, c.y + r)));
   }
-  BVH<Shape> tree(4, 0);
+  BVH<Shape> tree;
   tree.construct(scene);
   std::size_t listed = 0;
   // [readme:pairs]

@@ -46,7 +46,7 @@ int main() {
     bodies.push_back(Body{i, AABB{{x, y}, {x + w, y + h}}});
   }
   // [readme:box2d_query]
-  bvh::BVH<Body> world(4);
+  bvh::BVH<Body> world;
   world.construct(bodies);
   const AABB view{{100, 100}, {300, 250}};
   int seen = 0;

@@ -19,8 +19,8 @@ int main() {
   std::ostringstream listing;
   std::streambuf *const screen = std::cout.rdbuf(listing.rdbuf());
   // [readme:build]
-  BVH<Disk> tree(/*split_threshold=*/4, /*depth_limit=*/0);   // 0: unlimited
-  tree.construct(disks);                                      // or insert()
+  BVH<Disk> tree;          // the default: width 8, up to 32 shapes a leaf
+  tree.construct(disks);   // or insert()
   bool hit = tree.collision(Disk(Point(500, 500), 10, Color(0, 0, 0)));
   for (const Disk &d : tree) std::cout << d.getBox() << "\n";
   // [end]

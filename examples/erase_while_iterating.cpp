@@ -18,7 +18,7 @@ int main() {
     quads.push_back(Quad(Point(c.x - 3, c.y - 3), Point(c.x + 3, c.y - 3), Point(c.x + 3, c.y + 3),
                          Point(c.x - 3, c.y + 3), Color(rng.channel(), 0, 0)));
   }
-  BVH<Quad> tree(4, 0);
+  BVH<Quad> tree;
   tree.construct(quads);
   const std::vector<Quad> before(tree.begin(), tree.end());
   auto doomed = [](const Quad &q) { return q.getColor().r % 3 == 0; };

@@ -39,7 +39,7 @@ int main() {
   }
   const CircleIds read{&circles};
   // [readme:ids_sampling]
-  bvh::BVH<std::uint32_t, CircleIds> tree(4, 0, CircleIds{&circles});
+  bvh::BVH<std::uint32_t, CircleIds> tree(bvh::default_split_threshold, 0, CircleIds{&circles});
   std::vector<bvh::BVH<std::uint32_t, CircleIds>::handle> kept;
   for (std::uint32_t i = 0; i < circles.x.size(); ++i)
     if (!tree.collision(i)) kept.push_back(tree.insert(i));

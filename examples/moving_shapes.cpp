@@ -24,7 +24,7 @@ int main() {
   long pairs = 0; // touching pairs in the last frame
 
   // [readme:moving_shapes]
-  BVH<Disk> world(4, 0);
+  BVH<Disk> world;
   world.set_margin(0.5);             // fat leaf boxes: small moves touch no node
   std::vector<BVH<Disk>::handle> id;
   for (const Disk &d : disks) id.push_back(world.insert(d));

@@ -39,7 +39,7 @@ int main(int argc, char **argv) {
   for (game::Ball &b : candidates) b = {coord(rng), coord(rng), radius(rng)};
 
   // [readme:own_shape_sampling]
-  BVH<game::Ball> tree(4);
+  BVH<game::Ball> tree;
   for (const game::Ball &b : candidates)
     if (!tree.collision(b)) tree.insert(b);
   // [end]

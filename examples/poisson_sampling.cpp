@@ -17,7 +17,7 @@ int main() {
     candidates.push_back(
         Disk(Point(rng.uniform(0, 1000), rng.uniform(0, 1000)), rng.uniform(5, 15), Color(0, 0, 255)));
   // [readme:poisson]
-  BVH<Disk> kept(/*split_threshold=*/4, /*depth_limit=*/8);
+  BVH<Disk> kept(BVH<Disk>::default_split, /*depth_limit=*/8);
   for (const Disk &d : candidates)
     if (!kept.collision(d)) kept.insert(d);   // Poisson-disk sampling
   // [end]

@@ -1,6 +1,6 @@
-// examples/wide_tree.cpp — a tree of width 8 with 32 shapes a leaf, the
-// fastest and smallest configuration measured (docs/library.txt, WIDTH),
-// beside the course's ternary tree: Poisson-disk sampling into both, then
+// examples/wide_tree.cpp — the default tree, width 8 with 32 shapes a leaf,
+// the fastest and smallest configuration measured (docs/library.txt, WIDTH),
+// beside the course's ternary tree (CourseBVH): Poisson-disk sampling into both, then
 // the same collision queries. Checks that both keep the same disks and
 // answer alike (also a wide tree with a margin whose searches decide disks
 // from codes at every size), that the wide tree validates and is smaller, and prints
@@ -18,19 +18,19 @@ int main() {
   for (int i = 0; i < 20000; ++i)
     candidates.push_back(Disk(Point(rng.uniform(0, 1000), rng.uniform(0, 1000)), rng.uniform(1, 4), Color(0, 0, 255)));
   // [readme:wide]
-  bvh::BVH<Disk, bvh::shape_traits<Disk>, 8> wide(/*split_threshold=*/32);
+  BVH<Disk> wide;                                    // the default: width 8, split 32
   wide.insert_disjoint(candidates);                  // the loop's result, on every core
   const auto fill = wide.fill();                     // mean children / 8, shapes / 32
   // [end]
-  BVH<Disk> course(4);
+  CourseBVH<Disk> course;                           // the course's: width 3, split 4
   for (const Disk &d : candidates)
     if (!course.collision(d)) course.insert(d);
   // The same loop into a wide tree with a margin whose collision searches
   // decide disks from the leaves' codes at every size (TUNING): the same
   // answers, faster only on trees larger than the caches.
   // [readme:tuning]
-  using Tree = bvh::BVH<Disk, bvh::shape_traits<Disk>, 8>;
-  Tree tree(32);
+  using Tree = BVH<Disk>;
+  Tree tree;
   Tree::Tuning t = tree.tuning();     // a new tree has Tree::default_tuning()
   t.disk_codes_min_shapes = 0;        // decide disks from codes at every size
   tree.set_tuning(t);

@@ -70,7 +70,7 @@ template <class T> void scene(const std::string &name, std::uint8_t mode, const 
   }
   const int split_threshold = 1 + (mode & 3);
   const int depth_limit = (mode >> 2) & 3; // 0: unlimited
-  BVH<T> tree(split_threshold, depth_limit);
+  CourseBVH<T> tree(split_threshold, depth_limit);
   if (mode & 16) {
     tree.construct(shapes);
     require(tree.size() == shapes.size(), "construct keeps every shape");
@@ -99,7 +99,7 @@ template <class T> void scene(const std::string &name, std::uint8_t mode, const 
   tree.render_recolor(out);
   for (const T &s : tree) render_shape(out, s);
   render_end(out);
-  BVH<T> copy(tree);
+  CourseBVH<T> copy(tree);
   require(copy.validate() && copy.size() == tree.size(), "copies are whole");
 }
 

@@ -38,84 +38,84 @@ struct Case {
 
 const Case cases[] = {
     {"deref_end", [] {
-       BVH<Disk> t;
+       CourseBVH<Disk> t;
        t.construct(some_disks());
        std::printf("%g\n", (*t.end()).getRadius());
      }},
     {"arrow_end", [] {
-       BVH<Disk> t;
+       CourseBVH<Disk> t;
        t.construct(some_disks());
        std::printf("%g\n", t.end()->getRadius());
      }},
     {"deref_singular", [] {
-       BVH<Disk>::iterator it;
+       CourseBVH<Disk>::iterator it;
        std::printf("%g\n", it->getRadius());
      }},
     {"increment_end", [] {
-       BVH<Disk> t;
+       CourseBVH<Disk> t;
        t.construct(some_disks());
-       BVH<Disk>::iterator it = t.end();
+       CourseBVH<Disk>::iterator it = t.end();
        ++it;
      }},
     {"decrement_begin", [] {
-       BVH<Disk> t;
+       CourseBVH<Disk> t;
        t.construct(some_disks());
-       BVH<Disk>::iterator it = t.begin();
+       CourseBVH<Disk>::iterator it = t.begin();
        --it;
      }},
     {"decrement_end_of_empty", [] {
-       BVH<Disk> t;
-       BVH<Disk>::iterator it = t.end();
+       CourseBVH<Disk> t;
+       CourseBVH<Disk>::iterator it = t.end();
        it--;
      }},
     {"erase_end", [] {
-       BVH<Disk> t;
+       CourseBVH<Disk> t;
        t.construct(some_disks());
        t.erase(t.end());
      }},
     {"erase_other_trees_iterator", [] {
-       BVH<Disk> a, b;
+       CourseBVH<Disk> a, b;
        a.construct(some_disks());
        b.construct(some_disks());
        a.erase(b.begin());
      }},
     {"erase_invalidated_iterator", [] {
-       BVH<Disk> t;
+       CourseBVH<Disk> t;
        t.construct(some_disks());
-       BVH<Disk>::iterator last = --t.end();
+       CourseBVH<Disk>::iterator last = --t.end();
        t.clear();
        t.insert(some_disks()[0]);
        t.erase(last);
      }},
     {"id_of_end", [] {
-       BVH<Disk> t;
+       CourseBVH<Disk> t;
        t.construct(some_disks());
        std::printf("%u\n", unsigned(t.end().id().id));
      }},
     {"get_erased_handle", [] {
-       BVH<Disk> t;
-       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       CourseBVH<Disk> t;
+       const CourseBVH<Disk>::handle h = t.insert(some_disks()[0]);
        t.insert(some_disks()[1]);
        t.erase(h);
        std::printf("%g\n", t.get(h).getRadius());
      }},
     {"find_erased_handle", [] {
-       BVH<Disk> t;
-       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       CourseBVH<Disk> t;
+       const CourseBVH<Disk>::handle h = t.insert(some_disks()[0]);
        t.insert(some_disks()[1]);
        t.erase(h);
        std::printf("%d\n", int(t.find(h) == t.end()));
      }},
     {"erase_erased_handle", [] {
-       BVH<Disk> t;
-       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       CourseBVH<Disk> t;
+       const CourseBVH<Disk>::handle h = t.insert(some_disks()[0]);
        t.insert(some_disks()[1]);
        t.erase(h);
        t.erase(h);
      }},
     {"update_erased_handle", [] {
-       BVH<Disk> t;
-       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       CourseBVH<Disk> t;
+       const CourseBVH<Disk>::handle h = t.insert(some_disks()[0]);
        t.insert(some_disks()[1]);
        t.erase(h);
        t.update(h, some_disks()[2]);
@@ -123,53 +123,53 @@ const Case cases[] = {
     // A stale handle whose id a later insert() reused: it names no shape,
     // although its id does.
     {"get_stale_handle", [] {
-       BVH<Disk> t;
-       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       CourseBVH<Disk> t;
+       const CourseBVH<Disk>::handle h = t.insert(some_disks()[0]);
        t.insert(some_disks()[1]);
        t.erase(h);
        t.insert(some_disks()[2]);
        std::printf("%g\n", t.get(h).getRadius());
      }},
     {"find_stale_handle", [] {
-       BVH<Disk> t;
-       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       CourseBVH<Disk> t;
+       const CourseBVH<Disk>::handle h = t.insert(some_disks()[0]);
        t.insert(some_disks()[1]);
        t.erase(h);
        t.insert(some_disks()[2]);
        std::printf("%d\n", int(t.find(h) == t.end()));
      }},
     {"erase_stale_handle", [] {
-       BVH<Disk> t;
-       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       CourseBVH<Disk> t;
+       const CourseBVH<Disk>::handle h = t.insert(some_disks()[0]);
        t.insert(some_disks()[1]);
        t.erase(h);
        t.insert(some_disks()[2]);
        t.erase(h);
      }},
     {"update_stale_handle", [] {
-       BVH<Disk> t;
-       const BVH<Disk>::handle h = t.insert(some_disks()[0]);
+       CourseBVH<Disk> t;
+       const CourseBVH<Disk>::handle h = t.insert(some_disks()[0]);
        t.insert(some_disks()[1]);
        t.erase(h);
        t.insert(some_disks()[2]);
        t.update(h, some_disks()[3]);
      }},
     {"get_handle_from_before_emptying", [] {
-       BVH<Disk> t;
+       CourseBVH<Disk> t;
        t.construct(some_disks());
-       const BVH<Disk>::handle h = t.constructed(0);
+       const CourseBVH<Disk>::handle h = t.constructed(0);
        t.clear();
        t.construct(some_disks()); // id 0 again, of a newer generation
        std::printf("%g\n", t.get(h).getRadius());
      }},
     {"deref_overlap_end", [] {
-       BVH<Disk> t;
+       CourseBVH<Disk> t;
        t.construct(some_disks());
        const Disk probe = some_disks()[0];
        std::printf("%g\n", (*t.overlapping(probe).end()).getRadius());
      }},
     {"increment_overlap_end", [] {
-       BVH<Disk> t;
+       CourseBVH<Disk> t;
        t.construct(some_disks());
        const Disk probe = some_disks()[0];
        auto it = t.overlapping(probe).end();
@@ -183,10 +183,10 @@ int main(int argc, char **argv) {
   const std::string which = argc > 1 ? argv[1] : "";
   if (which == "valid") {
     // Every operation near the edges, used correctly: no assertion fires.
-    BVH<Disk> t;
+    CourseBVH<Disk> t;
     if (t.begin() != t.end()) return 1;
     t.construct(some_disks());
-    BVH<Disk>::iterator it = t.end();
+    CourseBVH<Disk>::iterator it = t.end();
     --it;
     it = t.erase(it);
     if (it != t.end()) return 1;
@@ -198,12 +198,12 @@ int main(int argc, char **argv) {
   if (which == "stale") {
     // With the checks off, a stale handle (its id reused by a later insert)
     // or one never given changes nothing, and each call says so.
-    BVH<Disk> t;
+    CourseBVH<Disk> t;
     const std::vector<Disk> d = some_disks();
-    const BVH<Disk>::handle old = t.insert(d[0]);
+    const CourseBVH<Disk>::handle old = t.insert(d[0]);
     t.insert(d[1]);
     t.erase(old);
-    const BVH<Disk>::handle now = t.insert(d[2]);
+    const CourseBVH<Disk>::handle now = t.insert(d[2]);
     int wrong = 0;
     const auto expect = [&](bool ok, const char *what) {
       if (!ok) {
@@ -212,7 +212,7 @@ int main(int argc, char **argv) {
       }
     };
     expect(now.id == old.id && now != old, "the id is reused, with another generation");
-    for (const BVH<Disk>::handle h : {old, BVH<Disk>::handle{now.id, now.generation + 1}, BVH<Disk>::handle{99}}) {
+    for (const CourseBVH<Disk>::handle h : {old, CourseBVH<Disk>::handle{now.id, now.generation + 1}, CourseBVH<Disk>::handle{99}}) {
       expect(!t.contains(h), "contains() is false");
       expect(!t.erase(h), "erase() returns false");
       expect(!t.update(h, d[3]), "update() returns false");

@@ -1,4 +1,4 @@
-// tests/test_bvh.cpp — BVH<T> against brute-force models: the bulk build
+// tests/test_bvh.cpp — CourseBVH<T> against brute-force models: the bulk build
 // against a literal (stable-sort, recursive) rendering of the course's rule,
 // collision() and discard-overlap sampling against O(n^2) scans, iterators,
 // copies and moves, validate() after every build and insert, deep trees.
@@ -32,10 +32,10 @@ using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unquali
 
 #if __cplusplus >= 202002L
 #include <iterator>
-static_assert(std::bidirectional_iterator<BVH<Disk>::iterator>);
-static_assert(std::bidirectional_iterator<BVH<Triangle>::iterator>);
-static_assert(std::bidirectional_iterator<BVH<Quad>::iterator>);
-static_assert(std::bidirectional_iterator<BVH<Shape>::iterator>);
+static_assert(std::bidirectional_iterator<CourseBVH<Disk>::iterator>);
+static_assert(std::bidirectional_iterator<CourseBVH<Triangle>::iterator>);
+static_assert(std::bidirectional_iterator<CourseBVH<Quad>::iterator>);
+static_assert(std::bidirectional_iterator<CourseBVH<Shape>::iterator>);
 #endif
 
 namespace {
@@ -109,7 +109,7 @@ template <class T> std::string ref_report(const std::vector<T> &shapes, int k, i
   return out.str() + buf;
 }
 
-template <class T> std::string report(const BVH<T> &tree) {
+template <class T> std::string report(const CourseBVH<T> &tree) {
   std::ostringstream out;
   tree.statistics(out, true);
   return out.str();
@@ -130,7 +130,7 @@ template <class T> void check_build_against_reference(unsigned seed) {
     const int k = 1 + int(make.rng() % 6);
     const int limit = int(make.rng() % 7); // 0: unlimited
     const std::vector<T> shapes = make.template scene<T>(n, 40);
-    BVH<T> tree(k, limit);
+    CourseBVH<T> tree(k, limit);
     tree.construct(shapes);
     std::string why;
     CHECK(tree.validate(&why));
@@ -204,11 +204,44 @@ TEST(course_example_matches_the_handout_shape) {
   // depth 2, nine leaves of four.
   Maker make(base_seed());
   const std::vector<Triangle> shapes = make.scene<Triangle>(36, 40);
-  BVH<Triangle> tree(4, 2);
+  CourseBVH<Triangle> tree(4, 2);
   tree.construct(shapes);
   CHECK(tree.validate());
   CHECK_EQ(tree.node_count(), std::size_t(13));
   CHECK_EQ(tree.height(), 2);
+}
+
+// The two configurations (defaults.h): BVH<T> is the default, width 8 and
+// 32 shapes a leaf; CourseBVH<T> the course's, width 3 and 4; BVHOfWidth
+// another width with the default traits. A default tree is the explicit
+// width-8, k-32 tree node for node, and answers as a scan does.
+static_assert(std::is_same<BVH<Disk>, BVH<Disk, bvh::shape_traits<Disk>, 8>>::value, "BVH<T> is width 8");
+static_assert(std::is_same<CourseBVH<Triangle>, BVH<Triangle, bvh::shape_traits<Triangle>, 3>>::value,
+              "CourseBVH<T> is width 3");
+static_assert(std::is_same<BVHOfWidth<Quad, 4>, BVH<Quad, bvh::shape_traits<Quad>, 4>>::value, "BVHOfWidth<T, 4>");
+TEST(default_tree_is_width_8_split_32_and_the_course_tree_is_named) {
+  CHECK(BVH<Disk>().split_threshold() == 32);
+  CHECK(BVH<Disk>::default_split == bvh::default_split_threshold);
+  CHECK(CourseBVH<Disk>().split_threshold() == 4);
+  CHECK((BVHOfWidth<Disk, 4>().split_threshold() == 32));
+  CHECK((BVHOfWidth<Disk, 3>().split_threshold() == 4));
+  const unsigned seed = base_seed() + 31;
+  note("BVH_SEED=" + std::to_string(seed));
+  Maker make(seed);
+  const std::vector<Disk> disks = make.scene<Disk>(scaled(3000) + 100, 20);
+  BVH<Disk> fast;
+  BVH<Disk, bvh::shape_traits<Disk>, 8> spelled(32);
+  fast.construct(disks);
+  spelled.construct(disks);
+  CHECK(fast.validate());
+  CHECK(std::equal(fast.begin(), fast.end(), spelled.begin(), spelled.end()));
+  CourseBVH<Disk> course;
+  course.construct(disks);
+  CHECK(fast.height() == spelled.height() && fast.height() < course.height());
+  for (int q = 0; q < 200; ++q) {
+    const Disk probe = make.scene<Disk>(1, 30)[0];
+    CHECK(fast.collision(probe) == brute_collision(disks, probe));
+  }
 }
 
 TEST(bulk_build_equals_literal_course_rule_disks) { check_build_against_reference<Disk>(base_seed()); }
@@ -226,8 +259,8 @@ TEST(bulk_build_equals_literal_course_rule_mixed) { check_build_against_referenc
 TEST(threaded_build_equals_the_literal_course_rule) {
   if (scale() < 1) return; // the literal rule is slow at this size
   Maker make(base_seed() + 12, 2.0);
-  const std::vector<Disk> disks = make.scene<Disk>(int(BVH<Disk>::kParallelMin + 4321), 6);
-  BVH<Disk> tree(4, 0);
+  const std::vector<Disk> disks = make.scene<Disk>(int(CourseBVH<Disk>::kParallelMin + 4321), 6);
+  CourseBVH<Disk> tree(4, 0);
   tree.set_build_threads(2);
   tree.construct(disks);
   CHECK(report(tree) == ref_report(disks, 4, 0));
@@ -238,7 +271,7 @@ TEST(bulk_build_with_all_centres_equal) {
   std::vector<Disk> shapes;
   for (int i = 0; i < 40; ++i) shapes.push_back(Disk(Point(500, 500), 1 + i % 7, Color(i, 0, 0)));
   for (int k = 1; k <= 5; ++k) {
-    BVH<Disk> tree(k, 0);
+    CourseBVH<Disk> tree(k, 0);
     tree.construct(shapes);
     CHECK(tree.validate());
     CHECK(report(tree) == ref_report(shapes, k, 0));
@@ -246,7 +279,7 @@ TEST(bulk_build_with_all_centres_equal) {
 }
 
 TEST(statistics_of_an_empty_tree) {
-  BVH<Quad> tree(4, 3);
+  CourseBVH<Quad> tree(4, 3);
   std::ostringstream out;
   tree.statistics(out, true);
   CHECK_EQ(out.str(), std::string("node count:            0\nmax depth:             0\n"
@@ -259,7 +292,7 @@ TEST(statistics_of_an_empty_tree) {
 TEST(root_area_prints_three_significant_digits) {
   // 900 x 1000 = 0.9 of the canvas: the course prints the root as "0.9".
   std::vector<Quad> q = {Quad(Point(0, 0), Point(900, 0), Point(900, 1000), Point(0, 1000), Color(1, 2, 3))};
-  BVH<Quad> tree(4, 2);
+  CourseBVH<Quad> tree(4, 2);
   tree.construct(q);
   std::ostringstream out;
   tree.statistics(out, true);
@@ -267,16 +300,16 @@ TEST(root_area_prints_three_significant_digits) {
 }
 
 TEST(iterators_on_empty_and_one_shape_trees) {
-  const BVH<Disk> empty_tree;
+  const CourseBVH<Disk> empty_tree;
   CHECK(empty_tree.begin() == empty_tree.end());
   CHECK(!(empty_tree.begin() != empty_tree.end()));
-  BVH<Disk> one(4, 0);
+  CourseBVH<Disk> one(4, 0);
   const Disk d(Point(1, 2), 3, Color(4, 5, 6));
   one.insert(d);
-  BVH<Disk>::iterator it = one.begin();
+  CourseBVH<Disk>::iterator it = one.begin();
   CHECK(*it == d);
   CHECK_EQ(it->getRadius(), 3.0);
-  BVH<Disk>::iterator old = it++;
+  CourseBVH<Disk>::iterator old = it++;
   CHECK(old == one.begin());
   CHECK(it == one.end());
   old = it--;
@@ -293,17 +326,17 @@ TEST(iterators_walk_both_ways_over_every_shape) {
     Maker make(seed + unsigned(round));
     const int n = 1 + int(make.rng() % 300);
     const std::vector<Triangle> shapes = make.scene<Triangle>(n, 30);
-    BVH<Triangle> tree(1 + int(make.rng() % 5), int(make.rng() % 6));
+    CourseBVH<Triangle> tree(1 + int(make.rng() % 5), int(make.rng() % 6));
     if (round % 2)
       tree.construct(shapes);
     else
       for (const Triangle &t : shapes) tree.insert(t);
-    const BVH<Triangle> &view = tree;
+    const CourseBVH<Triangle> &view = tree;
     std::vector<Triangle> forward, backward, post_forward, post_backward;
-    for (BVH<Triangle>::iterator it = view.begin(); it != view.end(); ++it) forward.push_back(*it);
-    for (BVH<Triangle>::iterator it = view.begin(); it != view.end(); it++) post_forward.push_back(*it);
-    for (BVH<Triangle>::iterator it = view.end(); it != view.begin();) backward.push_back(*--it);
-    for (BVH<Triangle>::iterator it = view.end(); it != view.begin();) {
+    for (CourseBVH<Triangle>::iterator it = view.begin(); it != view.end(); ++it) forward.push_back(*it);
+    for (CourseBVH<Triangle>::iterator it = view.begin(); it != view.end(); it++) post_forward.push_back(*it);
+    for (CourseBVH<Triangle>::iterator it = view.end(); it != view.begin();) backward.push_back(*--it);
+    for (CourseBVH<Triangle>::iterator it = view.end(); it != view.begin();) {
       it--;
       post_backward.push_back(*it);
     }
@@ -316,10 +349,10 @@ TEST(iterators_walk_both_ways_over_every_shape) {
     CHECK(post_backward == forward);
     CHECK(*--view.end() == forward.back());
     // Post-increment returns the old position, pre-increment the new one.
-    BVH<Triangle>::iterator a = view.begin();
-    BVH<Triangle>::iterator b = a++;
+    CourseBVH<Triangle>::iterator a = view.begin();
+    CourseBVH<Triangle>::iterator b = a++;
     CHECK(b == view.begin());
-    BVH<Triangle>::iterator c = view.begin();
+    CourseBVH<Triangle>::iterator c = view.begin();
     CHECK(++c == a);
   }
 }
@@ -327,10 +360,10 @@ TEST(iterators_walk_both_ways_over_every_shape) {
 TEST(copies_are_deep_and_independent) {
   Maker make(base_seed());
   const std::vector<Disk> shapes = make.scene<Disk>(100, 20);
-  BVH<Disk> original(3, 4);
+  CourseBVH<Disk> original(3, 4);
   original.construct(shapes);
   const std::string before = report(original);
-  BVH<Disk> copy(original);
+  CourseBVH<Disk> copy(original);
   CHECK(copy.validate());
   CHECK(report(copy) == before);
   copy.insert(Disk(Point(1, 1), 1, Color(0, 0, 0)));
@@ -339,7 +372,7 @@ TEST(copies_are_deep_and_independent) {
   CHECK(report(original) == before);
   CHECK(contents(original) != contents(copy));
   CHECK(same_multiset(contents(original), shapes));
-  BVH<Disk> assigned(9, 9);
+  CourseBVH<Disk> assigned(9, 9);
   assigned = original;
   CHECK(assigned.validate());
   CHECK_EQ(assigned.split_threshold(), 3);
@@ -350,10 +383,10 @@ TEST(copies_are_deep_and_independent) {
 
 TEST(self_assignment_is_harmless) {
   Maker make(base_seed());
-  BVH<Quad> tree(2, 0);
+  CourseBVH<Quad> tree(2, 0);
   tree.construct(make.scene<Quad>(50, 20));
   const std::string before = report(tree);
-  BVH<Quad> &alias = tree;
+  CourseBVH<Quad> &alias = tree;
   tree = alias;
   CHECK(tree.validate());
   CHECK(report(tree) == before);
@@ -364,10 +397,10 @@ TEST(self_assignment_is_harmless) {
 
 TEST(moves_leave_a_valid_empty_tree) {
   Maker make(base_seed());
-  BVH<Triangle> a(4, 3);
+  CourseBVH<Triangle> a(4, 3);
   a.construct(make.scene<Triangle>(60, 20));
   const std::string before = report(a);
-  BVH<Triangle> b(std::move(a));
+  CourseBVH<Triangle> b(std::move(a));
   CHECK(report(b) == before);
   CHECK(a.empty());
   CHECK(a.validate());
@@ -375,7 +408,7 @@ TEST(moves_leave_a_valid_empty_tree) {
   a.insert(Triangle(Point(0, 0), Point(1, 0), Point(0, 1), Color(1, 1, 1)));
   CHECK(a.validate());
   CHECK_EQ(a.size(), std::size_t(1));
-  BVH<Triangle> c;
+  CourseBVH<Triangle> c;
   c = std::move(b);
   CHECK(report(c) == before);
   CHECK(b.empty() && b.validate());
@@ -387,7 +420,7 @@ TEST(insert_keeps_every_invariant) {
     note(seed_note(seed, round));
     Maker make(seed + 31u * unsigned(round), round % 2 ? 10.0 : 0.0);
     const int k = 1 + int(make.rng() % 5), limit = int(make.rng() % 8);
-    BVH<Quad> tree(k, limit);
+    CourseBVH<Quad> tree(k, limit);
     const std::vector<Quad> shapes = make.scene<Quad>(1 + int(make.rng() % 250), 30);
     bool all_valid = true;
     std::string why;
@@ -410,7 +443,7 @@ template <class T> void check_collision_and_discard(unsigned seed, double size) 
     note(seed_note(seed, round));
     Maker make(seed + 101u * unsigned(round), round % 3 == 0 ? 5.0 : 0.0);
     const std::vector<T> candidates = make.template scene<T>(scaled(400), size);
-    BVH<T> tree(1 + int(make.rng() % 6), int(make.rng() % 9));
+    CourseBVH<T> tree(1 + int(make.rng() % 6), int(make.rng() % 9));
     std::vector<T> kept; // the brute-force model
     int disagreements = 0;
     for (const T &s : candidates) {
@@ -425,7 +458,7 @@ template <class T> void check_collision_and_discard(unsigned seed, double size) 
     CHECK(tree.validate());
     CHECK(same_multiset(contents(tree), kept));
     // Probes against a finished bulk-built tree of everything.
-    BVH<T> bulk(1 + int(make.rng() % 6), int(make.rng() % 9));
+    CourseBVH<T> bulk(1 + int(make.rng() % 6), int(make.rng() % 9));
     bulk.construct(candidates);
     const std::vector<T> probes = make.template scene<T>(scaled(200), size);
     int wrong = 0;
@@ -447,23 +480,23 @@ TEST(collision_and_discard_overlap_equal_brute_force_mixed) {
 }
 
 TEST(touching_shapes_collide) {
-  BVH<Disk> tree(4, 0);
+  CourseBVH<Disk> tree(4, 0);
   tree.insert(Disk(Point(100, 100), 10, Color()));
   CHECK(tree.collision(Disk(Point(120, 100), 10, Color())));  // tangent
   CHECK(!tree.collision(Disk(Point(121, 100), 10, Color()))); // 1 apart
-  BVH<Quad> quads(4, 0);
+  CourseBVH<Quad> quads(4, 0);
   quads.insert(Quad(Point(0, 0), Point(10, 0), Point(10, 10), Point(0, 10), Color()));
   CHECK(quads.collision(Quad(Point(10, 0), Point(20, 0), Point(20, 10), Point(10, 10), Color()))); // shared edge
   CHECK(!quads.collision(Quad(Point(11, 0), Point(20, 0), Point(20, 10), Point(11, 10), Color())));
 }
 
 TEST(split_threshold_one_makes_binary_splits_of_two) {
-  BVH<Disk> tree(1, 0);
+  CourseBVH<Disk> tree(1, 0);
   for (int i = 0; i < 50; ++i) {
     tree.insert(Disk(Point(10.0 * i, 5.0 * (i % 7)), 2, Color()));
     CHECK(tree.validate());
   }
-  BVH<Disk> bulk(1, 0);
+  CourseBVH<Disk> bulk(1, 0);
   bulk.construct(contents(tree));
   CHECK(bulk.validate());
   CHECK_EQ(bulk.size(), std::size_t(50));
@@ -472,13 +505,13 @@ TEST(split_threshold_one_makes_binary_splits_of_two) {
 TEST(deep_trees_do_not_recurse) {
   // Sorted input with no depth limit drives insert into a long spine; copy,
   // iteration, statistics, validate and destruction must all cope.
-  BVH<Disk> tree(1, 0);
+  CourseBVH<Disk> tree(1, 0);
   const int n = scaled(5000);
   for (int i = 0; i < n; ++i) tree.insert(Disk(Point(0.01 * i, 0.01 * i), 0.001, Color()));
   CHECK_EQ(tree.size(), std::size_t(n));
-  BVH<Disk> copy = tree;
+  CourseBVH<Disk> copy = tree;
   std::size_t walked = 0;
-  for (BVH<Disk>::iterator it = copy.begin(); it != copy.end(); ++it) ++walked;
+  for (CourseBVH<Disk>::iterator it = copy.begin(); it != copy.end(); ++it) ++walked;
   CHECK_EQ(walked, std::size_t(n));
   std::ostringstream sink;
   copy.statistics(sink, true);
@@ -493,19 +526,19 @@ TEST(sorted_insert_of_200k_shapes_stays_shallow) {
   // assignment, both iteration directions, statistics and destruction are
   // iterative, so nothing can overflow the stack either.
   const int n = scaled(200000);
-  BVH<Disk> tree(1, BVH<Disk>::unlimited);
+  CourseBVH<Disk> tree(1, CourseBVH<Disk>::unlimited);
   for (int i = 0; i < n; ++i) tree.insert(Disk(Point(0.004 * i, 0.004 * i), 0.001, Color(i % 256, 0, 0)));
   CHECK_EQ(tree.size(), std::size_t(n));
   const double log3n = std::log(double(n)) / std::log(3.0);
   note("height " + std::to_string(tree.height()) + " for " + std::to_string(n) + " shapes");
   CHECK(tree.height() <= int(3 * log3n) + 2);
   CHECK(tree.validate());
-  BVH<Disk> copy(tree);
-  BVH<Disk> assigned(4, 3);
+  CourseBVH<Disk> copy(tree);
+  CourseBVH<Disk> assigned(4, 3);
   assigned = copy;
   std::size_t forward = 0, backward = 0;
-  for (BVH<Disk>::iterator it = assigned.begin(); it != assigned.end(); ++it) ++forward;
-  for (BVH<Disk>::iterator it = assigned.end(); it != assigned.begin();) {
+  for (CourseBVH<Disk>::iterator it = assigned.begin(); it != assigned.end(); ++it) ++forward;
+  for (CourseBVH<Disk>::iterator it = assigned.end(); it != assigned.begin();) {
     --it;
     ++backward;
   }
@@ -514,7 +547,7 @@ TEST(sorted_insert_of_200k_shapes_stays_shallow) {
   std::ostringstream sink;
   assigned.statistics(sink, true);
   CHECK(sink.str().size() > std::size_t(n));
-  BVH<Disk> moved(std::move(copy));
+  CourseBVH<Disk> moved(std::move(copy));
   CHECK(moved.validate());
   CHECK(copy.empty());
   CHECK(moved.collision(Disk(Point(0.004 * (n / 3), 0.004 * (n / 3)), 0, Color())));
@@ -522,7 +555,7 @@ TEST(sorted_insert_of_200k_shapes_stays_shallow) {
 }
 
 TEST(depth_limit_leaves_grow_without_splitting) {
-  BVH<Triangle> tree(2, 1);
+  CourseBVH<Triangle> tree(2, 1);
   Maker make(base_seed());
   for (const Triangle &t : make.scene<Triangle>(100, 20)) tree.insert(t);
   CHECK(tree.validate());
@@ -1158,7 +1191,7 @@ TEST(large_build_equals_the_literal_course_rule) {
   const std::size_t n = (std::size_t(8) << 20) / sizeof(bvh::detail::Item<Disk, bvh::shape_traits<Disk>>) + 1000;
   Maker make(base_seed() + 13, 0.0);
   const std::vector<Disk> disks = make.scene<Disk>(int(n), 3);
-  BVH<Disk> tree(4, 0);
+  CourseBVH<Disk> tree(4, 0);
   tree.construct(disks);
   std::string why;
   CHECK(tree.validate(&why));

@@ -130,7 +130,7 @@ template <class T> void scenes_against_loop(unsigned seed) {
                               std::to_string(round);
     Maker make(seed + unsigned(round), round % 3 == 2 ? 25.0 : 0.0); // some rounds: tied coordinates
     const int split = 1 + int(make.rng() % 6);
-    static const int depths[] = {BVH<T>::unlimited, BVH<T>::unlimited, 2, 6};
+    static const int depths[] = {CourseBVH<T>::unlimited, CourseBVH<T>::unlimited, 2, 6};
     const int depth = depths[make.rng() % 4];
     const Start how = round % 3 == 0 ? Start::empty : round % 3 == 1 ? Start::constructed : Start::inserted;
     const std::vector<T> base = make.scene<T>(scaled(400), 10);
@@ -169,7 +169,7 @@ TEST(disjoint_batches_adapt_and_stay_exact) {
   c.insert(c.end(), dense.begin(), dense.end());
   const std::vector<Disk> sparse = make.scene<Disk>(scaled(20000), 0.3);
   c.insert(c.end(), sparse.begin(), sparse.end());
-  check_against_loop(std::vector<Disk>{}, Start::empty, c, 4, BVH<Disk>::unlimited,
+  check_against_loop(std::vector<Disk>{}, Start::empty, c, 4, CourseBVH<Disk>::unlimited,
                      "BVH_SEED=" + std::to_string(seed) + " sparse, dense, sparse");
 }
 
@@ -188,7 +188,7 @@ TEST(disjoint_one_huge_batch_of_survivors) {
   for (int i = 0; i < lanes_scaled(60000); ++i)
     c.push_back(Disk(Point(make.coord(150, 350), make.coord(400, 600)), make.coord(0, 3)));
   for (int i = 0; i < lanes_scaled(30000); ++i) c.push_back(Disk(Point(make.coord(520, 1000), make.coord(0, 1000)), make.coord(0, 1.2)));
-  check_against_loop(std::vector<Disk>{Disk(Point(250, 500), 240)}, Start::inserted, c, 4, BVH<Disk>::unlimited,
+  check_against_loop(std::vector<Disk>{Disk(Point(250, 500), 240)}, Start::inserted, c, 4, CourseBVH<Disk>::unlimited,
                      "BVH_SEED=" + std::to_string(seed) + " one huge batch");
 }
 
@@ -218,7 +218,7 @@ TEST(disjoint_lanes_are_the_loop) {
     const std::string where = "BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
     Maker make(seed + unsigned(round));
     const int split = 1 + round % 6;
-    const int depth = round % 3 == 2 ? 5 : BVH<Disk>::unlimited;
+    const int depth = round % 3 == 2 ? 5 : CourseBVH<Disk>::unlimited;
     const Start how = round % 2 ? Start::constructed : Start::empty;
     const std::vector<Disk> c = lanes_candidates(make);
     const std::size_t before = lanes_probe::laps();
@@ -228,15 +228,15 @@ TEST(disjoint_lanes_are_the_loop) {
   // The surface area heuristic's splits and rebuilds, and mixed shapes.
   Maker make(seed + 10);
   const std::vector<Shape> base = make.scene<Shape>(lanes_scaled(5000), 0.6), c = make.scene<Shape>(lanes_scaled(9000), 0.6);
-  BVH<Shape> loop(3);
-  loop.set_build_rule(BVH<Shape>::BuildRule::sah);
+  CourseBVH<Shape> loop(3);
+  loop.set_build_rule(CourseBVH<Shape>::BuildRule::sah);
   loop.construct(base);
   for (const Shape &s : c)
     if (!loop.collision(s)) loop.insert(s);
   for (unsigned threads : {2u, 3u}) {
     note("BVH_SEED=" + std::to_string(seed + 10) + " SAH, mixed shapes, threads " + std::to_string(threads));
-    BVH<Shape> tree(3);
-    tree.set_build_rule(BVH<Shape>::BuildRule::sah);
+    CourseBVH<Shape> tree(3);
+    tree.set_build_rule(CourseBVH<Shape>::BuildRule::sah);
     tree.construct(base);
     const std::size_t before = lanes_probe::laps();
     lanes_probe::insert_disjoint(tree, c, threads);
@@ -257,7 +257,7 @@ template <int W> void lanes_at_width(unsigned seed) {
         "width " + std::to_string(W) + " BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
     Maker make(seed + unsigned(round));
     const int split = 1 + 3 * round; // 1, 4, 7
-    const int depth = round == 2 ? 4 : BVH<Disk>::unlimited;
+    const int depth = round == 2 ? 4 : CourseBVH<Disk>::unlimited;
     const std::vector<Disk> c = lanes_candidates(make);
     const std::size_t before = lanes_probe::laps();
     check_against_loop<Disk, W>(make.scene<Disk>(lanes_scaled(6000), 0.5), round == 1 ? Start::constructed : Start::empty, c,
@@ -506,11 +506,11 @@ TEST(disjoint_margins_lanes_and_handles_crossed) {
 /// ends: the tree holds about what the loop's holds.
 TEST(disjoint_gives_back_the_lanes_room) {
   const unsigned seed = base_seed() + 600;
-  for (int depth : {BVH<Disk>::unlimited, 6}) {
+  for (int depth : {CourseBVH<Disk>::unlimited, 6}) {
     note("BVH_SEED=" + std::to_string(seed) + " depth " + std::to_string(depth));
     Maker make(seed + unsigned(depth));
     const std::vector<Disk> c = make.scene<Disk>(20000, 0.5);
-    BVH<Disk> loop(4, depth), tree(4, depth);
+    CourseBVH<Disk> loop(4, depth), tree(4, depth);
     for (const Disk &d : c)
       if (!loop.collision(d)) loop.insert(d);
     const std::size_t before = lanes_probe::laps();
@@ -539,10 +539,10 @@ TEST(disjoint_on_tiny_and_empty_inputs) {
                        where + " triangles");
   }
   // Threads 0: the hardware's.
-  BVH<Disk> tree;
+  CourseBVH<Disk> tree;
   CHECK(lanes_probe::insert_disjoint(tree, std::vector<Disk>{}).empty());
   const std::vector<Disk> c = make.scene<Disk>(500, 20);
-  BVH<Disk> loop;
+  CourseBVH<Disk> loop;
   std::vector<std::size_t> want;
   for (std::size_t i = 0; i < c.size(); ++i)
     if (!loop.collision(c[i])) {
@@ -585,7 +585,7 @@ namespace {
 
 /// (tag, handle) in iteration order, and validity: what is compared when
 /// fragile::Tagged has no statistics of its own worth printing.
-std::string fingerprint_tagged(const BVH<fragile::Tagged> &tree) {
+std::string fingerprint_tagged(const CourseBVH<fragile::Tagged> &tree) {
   std::ostringstream out;
   for (auto it = tree.begin(); it != tree.end(); ++it) out << it->tag << ":" << it.id().id << " ";
   out << "| height " << tree.height() << " nodes " << tree.node_count();
@@ -609,7 +609,7 @@ TEST(disjoint_rethrows_intersect_and_keeps_a_prefix) {
     fragile::poison() = -1;
     std::vector<std::size_t> kept;
     {
-      BVH<fragile::Tagged> loop(3);
+      CourseBVH<fragile::Tagged> loop(3);
       for (std::size_t i = 0; i < c.size(); ++i)
         if (!loop.collision(c[i])) {
           loop.insert(c[i]);
@@ -626,7 +626,7 @@ TEST(disjoint_rethrows_intersect_and_keeps_a_prefix) {
     fragile::poison() = int(victim);
     for (unsigned threads : thread_counts()) {
       note(where + " threads " + std::to_string(threads) + " poisoned " + std::to_string(victim));
-      BVH<fragile::Tagged> tree(3);
+      CourseBVH<fragile::Tagged> tree(3);
       bool thrown = false;
       try {
         lanes_probe::insert_disjoint(tree, c, threads);
@@ -643,7 +643,7 @@ TEST(disjoint_rethrows_intersect_and_keeps_a_prefix) {
       if (q > kept.size()) continue;
       CHECK(q == 0 || kept[q - 1] < victim);
       fragile::poison() = -1;
-      BVH<fragile::Tagged> prefix(3);
+      CourseBVH<fragile::Tagged> prefix(3);
       for (std::size_t k = 0; k < q; ++k) prefix.insert(c[kept[k]]);
       CHECK(fingerprint_tagged(tree) == fingerprint_tagged(prefix));
       // One thread: exactly the loop up to the victim.
@@ -702,7 +702,7 @@ TEST(disjoint_rethrows_a_copy_in_the_lanes_and_holds_the_prefix) {
   for (const Disk &d : make.scene<Disk>(std::max(2000, scaled(16000)), 0.5)) c.push_back(fragile::OnceFragile(d, int(c.size())));
   std::vector<std::size_t> kept;
   {
-    BVH<fragile::OnceFragile> loop(4);
+    CourseBVH<fragile::OnceFragile> loop(4);
     for (std::size_t i = 0; i < c.size(); ++i)
       if (!loop.collision(c[i])) {
         loop.insert(c[i]);
@@ -715,7 +715,7 @@ TEST(disjoint_rethrows_a_copy_in_the_lanes_and_holds_the_prefix) {
     for (unsigned threads : {2u, 3u, 8u}) {
       note("BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round) + " threads " +
            std::to_string(threads) + " poisoned " + std::to_string(victim));
-      BVH<fragile::OnceFragile> tree(4);
+      CourseBVH<fragile::OnceFragile> tree(4);
       const std::size_t before = lanes_probe::laps();
       fragile::armed() = int(victim);
       bool thrown = false;
@@ -901,7 +901,7 @@ TEST(const_queries_are_safe_for_concurrent_readers) {
   const unsigned seed = base_seed() + 720;
   note("BVH_SEED=" + std::to_string(seed));
   Maker make(seed);
-  BVH<Shape> tree(3);
+  CourseBVH<Shape> tree(3);
   tree.construct(make.scene<Shape>(scaled(5000), 8));
   for (const Shape &s : make.scene<Shape>(scaled(2000), 4)) tree.insert(s);
   const std::vector<Shape> probes = make.scene<Shape>(scaled(3000), 10);
@@ -914,7 +914,7 @@ TEST(const_queries_are_safe_for_concurrent_readers) {
       tree.query(p.getBox(), [&](const Shape &) { ++boxes; });
       std::size_t through = 0;
       for (const Shape &s : tree.overlapping(p)) through += s.getBox().getMin().x >= 0;
-      std::vector<BVH<Shape>::neighbor> near;
+      std::vector<CourseBVH<Shape>::neighbor> near;
       tree.nearest(p.getCenter(), 3, std::back_inserter(near));
       out << (first + k) % probes.size() << ":" << tree.collision(p) << touching << "," << boxes << "," << through;
       for (const auto &nb : near) out << "," << nb.id.id;

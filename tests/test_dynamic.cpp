@@ -78,7 +78,7 @@ template <class T, int W> std::string kind_at() {
 /// unlimited, small (leaves grow) and moderate.
 void parameters(std::mt19937 &rng, int &split, int &depth) {
   split = 1 + int(rng() % 6);
-  static const int depths[] = {BVH<Disk>::unlimited, BVH<Disk>::unlimited, 1, 2, 4, 8};
+  static const int depths[] = {CourseBVH<Disk>::unlimited, CourseBVH<Disk>::unlimited, 1, 2, 4, 8};
   depth = depths[rng() % 6];
 }
 
@@ -353,7 +353,7 @@ TEST(depth_limited_leaves_grow_past_a_pool_block) {
   // block holds: slots move to ever larger classes as they fill.
   Maker make(base_seed() + 2200);
   const std::vector<Disk> disks = make.scene<Disk>(scaled(6000), 3);
-  BVH<Disk> tree(4, 1);
+  CourseBVH<Disk> tree(4, 1);
   std::vector<Disk> model;
   for (const Disk &d : disks) {
     tree.insert(d);
@@ -376,8 +376,8 @@ TEST(depth_limited_leaves_grow_past_a_pool_block) {
 TEST(copies_of_a_tree_whose_pool_has_holes) {
   Maker make(base_seed() + 2300);
   std::mt19937 &rng = make.rng;
-  for (int depth : {BVH<Disk>::unlimited, 2}) {
-    BVH<Disk> tree(3, depth);
+  for (int depth : {CourseBVH<Disk>::unlimited, 2}) {
+    CourseBVH<Disk> tree(3, depth);
     std::vector<Disk> model = make.scene<Disk>(scaled(3000), 10);
     tree.construct(model);
     // Erase and insert at random: rebuilds and splits give slots back.
@@ -394,8 +394,8 @@ TEST(copies_of_a_tree_whose_pool_has_holes) {
         model.push_back(d);
       }
     }
-    BVH<Disk> copy(tree);
-    BVH<Disk> assigned(1, 1);
+    CourseBVH<Disk> copy(tree);
+    CourseBVH<Disk> assigned(1, 1);
     assigned = tree;
     std::string why;
     CHECK(copy.validate(&why) && assigned.validate(&why));
@@ -410,7 +410,7 @@ TEST(copies_of_a_tree_whose_pool_has_holes) {
     }
     CHECK(copy.validate(&why));
     CHECK(contents(tree) == before);
-    BVH<Disk> moved(std::move(assigned));
+    CourseBVH<Disk> moved(std::move(assigned));
     CHECK(moved.validate(&why) && contents(moved) == before && assigned.empty());
     CHECK(same_shapes(contents(tree), model));
   }
@@ -422,7 +422,7 @@ TEST(erase_while_iterating_visits_each_shape_once) {
   note("BVH_SEED=" + std::to_string(seed));
   const std::vector<Disk> shapes = make.scene<Disk>(scaled(2000), 20);
   for (int split : {1, 4}) {
-    BVH<Disk> tree(split, BVH<Disk>::unlimited);
+    CourseBVH<Disk> tree(split, CourseBVH<Disk>::unlimited);
     tree.construct(shapes);
     const std::vector<Disk> order = contents(tree);
     std::vector<Disk> visited, kept;
@@ -445,7 +445,7 @@ TEST(erase_while_iterating_visits_each_shape_once) {
 TEST(erase_everything_then_reuse) {
   Maker make(base_seed() + 400);
   const std::vector<Triangle> shapes = make.scene<Triangle>(scaled(500), 30);
-  BVH<Triangle> tree(3, BVH<Triangle>::unlimited);
+  CourseBVH<Triangle> tree(3, CourseBVH<Triangle>::unlimited);
   tree.construct(shapes);
   for (const Triangle &t : shapes) {
     tree.erase(t);
@@ -467,9 +467,9 @@ TEST(erase_everything_then_reuse) {
 TEST(erase_on_a_copy_leaves_the_original) {
   Maker make(base_seed() + 500);
   const std::vector<Quad> shapes = make.scene<Quad>(scaled(400), 30);
-  BVH<Quad> tree(4, 6);
+  CourseBVH<Quad> tree(4, 6);
   tree.construct(shapes);
-  BVH<Quad> copy = tree;
+  CourseBVH<Quad> copy = tree;
   for (std::size_t i = 0; i < shapes.size(); i += 2) copy.erase(shapes[i]);
   CHECK(copy.validate());
   CHECK(tree.validate());
@@ -478,7 +478,7 @@ TEST(erase_on_a_copy_leaves_the_original) {
 }
 
 TEST(erase_by_value_removes_every_duplicate) {
-  BVH<Disk> tree(2, BVH<Disk>::unlimited);
+  CourseBVH<Disk> tree(2, CourseBVH<Disk>::unlimited);
   const Disk a(Point(10, 10), 5, Color(1, 2, 3)), b(Point(10, 10), 5, Color(3, 2, 1)), c(Point(50, 50), 1, Color());
   for (int i = 0; i < 7; ++i) tree.insert(a);
   tree.insert(b);
@@ -1253,7 +1253,7 @@ struct CircleIds {
   }
 };
 TEST(stateful_traits_travel_with_copies_moves_and_swaps) {
-  using IdTree = BVH<std::uint32_t, CircleIds>;
+  using IdTree = CourseBVH<std::uint32_t, CircleIds>;
   std::mt19937 rng(base_seed() + 6700);
   std::uniform_real_distribution<double> coord(0, 1000), radius(1, 30);
   Circles a, b; // two sets of circles under the same ids 0..n-1
@@ -1512,7 +1512,7 @@ TEST(unsupported_values_are_refused_where_they_enter_widths_3_and_8) {
 // alone would pass) still counts.
 TEST(unsupported_polygon_vertices_and_shapes_are_refused) {
   const Triangle tiny_inside(Point(-1, -1), Point(1, 1), Point(1e-300, 0.5), Color());
-  BVH<Triangle> triangles;
+  CourseBVH<Triangle> triangles;
   CHECK(refuses([&] { triangles.insert(tiny_inside); }, "insert", "triangle with a vertex at 1e-300"));
   CHECK(triangles.empty());
   BVH<Shape, bvh::shape_traits<Shape>, 8> mixed;

@@ -126,7 +126,7 @@ template <class Tree> std::string order_of(const Tree &tree) {
   }
   return s;
 }
-template <class T> std::string report_of(const bvh::BVH<T> &engine) {
+template <class T> std::string report_of(const bvh::CourseBVH<T> &engine) {
   std::ostringstream out;
   engine.statistics(out, true);
   return out.str();
@@ -145,7 +145,7 @@ template <class T> bool one_case(unsigned seed, const std::string &rerun) {
   std::mt19937 rng(seed);
   const std::vector<T> shapes = scene<T>(rng, 1 + rng() % 1200);
   const int split_threshold = 1 + int(rng() % 8), depth_limit = int(rng() % 13), how = int(rng() % 3);
-  bvh::BVH<T> engine(split_threshold, depth_limit);
+  bvh::CourseBVH<T> engine(split_threshold, depth_limit);
   BVH<T> edition(split_threshold, depth_limit);
   std::string kept_engine, kept_edition; // discard: which candidates each kept
   if (how == 0) {

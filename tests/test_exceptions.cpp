@@ -34,7 +34,7 @@ using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unquali
 // C++20 build is the sanitizer build's, by clang++ and libc++ when they are
 // installed): the iterator's C++20 concept, with libstdc++.
 #if __cplusplus >= 202002L
-static_assert(std::bidirectional_iterator<BVH<Disk>::iterator>);
+static_assert(std::bidirectional_iterator<CourseBVH<Disk>::iterator>);
 static_assert(std::bidirectional_iterator<BVH<Shape, bvh::shape_traits<Shape>, 8>::iterator>);
 #endif
 #include "check.h"

@@ -560,7 +560,7 @@ namespace {
 /// the exact integer reference instead of intersect.h: the kept lists
 /// must be the same, in the same order.
 template <class T> void discard_matches_reference(const std::vector<T> &scene, int split, int depth, Tally &t) {
-  BVH<T> tree(split, depth);
+  CourseBVH<T> tree(split, depth);
   std::vector<T> by_tree, by_reference;
   for (const T &s : scene)
     if (!tree.collision(s)) {

@@ -29,7 +29,7 @@ using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unquali
 
 namespace {
 
-using Tree = BVH<Disk>;
+using Tree = CourseBVH<Disk>;
 using Handle = Tree::handle;
 
 /// The id rule, as docs/library.txt states it, and what each id names;

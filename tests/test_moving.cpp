@@ -24,7 +24,7 @@ using namespace bvh; // the library's names (Disk, BVH, intersect, ...), unquali
 
 namespace {
 
-using Tree = BVH<Disk>;
+using Tree = CourseBVH<Disk>;
 using Handle = Tree::handle;
 
 std::string seed_note(unsigned seed, int step) { return "BVH_SEED=" + std::to_string(seed) + " step " + std::to_string(step); }
@@ -371,7 +371,7 @@ TEST(update_within_the_margin_does_no_tree_work) {
       CHECK(tree.validate());
     };
     if (width == 0) {
-      BVH<Disk> tree(4, 0);
+      CourseBVH<Disk> tree(4, 0);
       run(tree);
     } else {
       BVH<Disk, bvh::shape_traits<Disk>, 8> tree(16, 0);
@@ -601,7 +601,7 @@ TEST(a_disk_query_finds_everything_within_its_radius) {
   const unsigned seed = base_seed() + 3900;
   note("BVH_SEED=" + std::to_string(seed));
   Maker make(seed);
-  BVH<Disk> tree(4, 0);
+  CourseBVH<Disk> tree(4, 0);
   std::vector<Disk> all = make.scene<Disk>(scaled(2000), 5);
   tree.construct(all);
   for (int q = 0; q < scaled(200); ++q) {
@@ -886,7 +886,7 @@ TEST(tuning_is_the_trees_and_sets_where_codes_decide) {
   const Tree::Tuning d = Tree::default_tuning();
   CHECK_EQ(tree.tuning().disk_codes_min_shapes, d.disk_codes_min_shapes);
   CHECK_EQ(tree.tuning().disjoint_lanes_min, d.disjoint_lanes_min);
-  CHECK_EQ(BVH<Triangle>::default_tuning().disjoint_interleave_min, d.disjoint_interleave_min);
+  CHECK_EQ(CourseBVH<Triangle>::default_tuning().disjoint_interleave_min, d.disjoint_interleave_min);
   Tree::Tuning t = d;
   t.disk_codes_min_shapes = 7;
   t.disjoint_sweep_min = 9;

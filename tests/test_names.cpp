@@ -44,7 +44,7 @@ template <> struct bvh::shape_traits<::Disk> {
 TEST(library_through_namespace_bvh) {
   std::vector<bvh::Disk> disks;
   for (int i = 0; i < 50; ++i) disks.emplace_back(bvh::Point(20.0 * i, 10), 12, bvh::Color(0, 0, 0));
-  bvh::BVH<bvh::Disk> tree(4);
+  bvh::CourseBVH<bvh::Disk> tree(4);
   tree.construct(disks);
   CHECK_EQ(tree.size(), 50u);
   CHECK(tree.validate());
@@ -61,7 +61,7 @@ TEST(own_global_type_with_traits) {
   std::uniform_real_distribution<float> coord(0, 500), radius(1, 10);
   std::vector<Disk> mine, kept;
   for (int i = 0; i < 3000; ++i) mine.push_back(Disk{{coord(rng), coord(rng)}, radius(rng)});
-  bvh::BVH<Disk> tree(4);
+  bvh::CourseBVH<Disk> tree(4);
   for (const Disk &d : mine) {
     if (!tree.collision(d)) tree.insert(d);
     bool touches = false;

@@ -56,7 +56,7 @@ void check_thread_counts(const std::vector<T> &shapes, int k, int limit, const s
 
 TEST(parallel_build_is_the_sequential_build) {
   const unsigned seed = base_seed() + 11;
-  const std::size_t n = BVH<Disk>::kParallelMin + 4321;
+  const std::size_t n = CourseBVH<Disk>::kParallelMin + 4321;
   // Scaled-down runs (valgrind, the sanitizers) check one disk scene on
   // fewer threads (scaled_thread_counts): a tree of the same size, fewer of them.
   const bool full = scale() >= 1;
@@ -76,7 +76,7 @@ TEST(parallel_build_is_the_sequential_build_at_width_8) {
   // levels down (scaled-down runs, under valgrind and the sanitizers: one).
   const unsigned seed = base_seed() + 17;
   const bool full = scale() >= 1;
-  const std::size_t n = (full ? 3 : 1) * BVH<Disk>::kParallelMin + 123;
+  const std::size_t n = (full ? 3 : 1) * CourseBVH<Disk>::kParallelMin + 123;
   for (int round = 0; round < (full ? 2 : 1); ++round) {
     const std::string where = "BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round);
     note(where);

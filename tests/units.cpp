@@ -2,7 +2,7 @@
 // build of them): tests/test_bvh.cpp, test_dynamic, test_moving,
 // test_intersect, test_threads, test_parse, and insert_disjoint's
 // test_disjoint and test_lazy_handles, each inside a namespace of its own,
-// so that the trees they share (BVH<Disk> and the rest) are compiled once
+// so that the trees they share (CourseBVH<Disk> and the rest) are compiled once
 // per build flavour instead of once per suite. The suites are unchanged and still
 // build alone (make build/test_bvh; make check builds them so).
 //

@@ -9,8 +9,8 @@
 // include a room by itself: <bvh/search.h> and what it includes, say,
 // without insert_disjoint's threads.
 //
-//   BVH<Disk> tree(/*split_threshold=*/4, /*depth_limit=*/0);  // 0: unlimited
-//   tree.construct(disks);                   // bulk build, the course's rule
+//   BVH<Disk> tree;                          // width 8, up to 32 shapes a leaf
+//   tree.construct(disks);                   // bulk build
 //   for (const Disk &d : more) if (!tree.collision(d)) tree.insert(d);
 //   for (const Disk &d : tree) std::cout << d.getBox() << "\n";
 //   tree.statistics(/*print_tree=*/true);    // the course's report, to stdout
@@ -27,7 +27,16 @@
 // typically. Copy, destruction and every traversal are iterative, so no
 // input can overflow the stack.
 //
+// The two configurations (defaults.h): BVH<T> is the library's default,
+// eight children a node and up to 32 shapes a leaf, the fastest and
+// smallest measured; CourseBVH<T> is the course's tree (three children,
+// up to four shapes a leaf, the course's rule), which bvh.out runs.
+// BVHOfWidth<T, W> is another width without spelling the traits; the split
+// threshold and the depth limit are the constructor's, the build rule
+// set_build_rule()'s.
+//
 // The rooms, each including only rooms above it:
+//   defaults.h     the default configuration and the course's
 //   config.h       assertions, platform switches
 //   traits.h       bounds, box_traits, shape_traits (the customization points)
 //   containers.h   IndexStack, BlockVector, mapped arrays, Span, Tagged
@@ -85,8 +94,7 @@
 
 namespace bvh {
 
-/// A bounding volume hierarchy (ternary, the course's, unless Width says
-/// otherwise) over values of type T: shapes, or
+/// A bounding volume hierarchy over values of type T: shapes, or
 /// anything a Traits adaptor can read (ids into the user's own arrays).
 ///
 /// What T must provide: copy construction and assignment, and what Traits
@@ -114,10 +122,11 @@ namespace bvh {
 /// basic for construct (left empty) and erase(value); never throwing for
 /// moves, swap, clear. A Traits adaptor's copy and move must not throw.
 ///
-/// Width: children per inner node, 2 to 8; 3 is the course's tree. At
-/// other widths the build rules fill nodes (CountCut: the course's rule
-/// halves by median, SAH cuts in two where cheapest, until W groups).
-template <class T, class Traits = shape_traits<T>, int Width = detail::kCourseWidth> class BVH {
+/// Width: children per inner node, 2 to 8; by default 8 (default_width),
+/// and 3 is the course's tree (CourseBVH<T>). At widths other than 3 the
+/// build rules fill nodes (CountCut: the course's rule halves by median,
+/// SAH cuts in two where cheapest, until W groups).
+template <class T, class Traits = shape_traits<T>, int Width = default_width> class BVH {
   static_assert(Width >= detail::kMinWidth && Width <= detail::kMaxWidth, "BVH<T, Traits, Width>: Width is 2 to 8");
   static_assert(std::is_nothrow_destructible<T>::value, "BVH<T>: T's destructor must not throw");
   static_assert(std::is_nothrow_copy_constructible<Traits>::value && std::is_nothrow_move_assignable<Traits>::value,
@@ -136,11 +145,15 @@ public:
   /// How construct() and the splits and rebuilds of insert() cut a node.
   using BuildRule = detail::BuildRule;
 
+  /// The split threshold of a tree built without one: 32
+  /// (default_split_threshold), and the course's 4 at the course's width 3.
+  static constexpr int default_split = default_split_threshold_at(Width);
+
   /// An empty tree. A node holding more than `split_threshold` shapes is
   /// split unless it is at depth `depth_limit` (root = depth 0;
   /// `depth_limit <= 0` means unlimited). A `split_threshold` below 1 is
   /// taken as 1 (every leaf then holds one shape, above the depth limit).
-  explicit BVH(int split_threshold = 4, int depth_limit = unlimited, Traits traits = Traits())
+  explicit BVH(int split_threshold = default_split, int depth_limit = unlimited, Traits traits = Traits())
       : core_(std::move(traits), split_threshold < 1 ? 1 : split_threshold,
               depth_limit <= 0 ? unlimited : depth_limit) {}
 
@@ -806,6 +819,15 @@ private:
 
   Core core_;
 };
+
+/// The course's tree: three children a node, up to four shapes a leaf by
+/// default, and the course's rule (defaults.h); what bvh.out runs and the
+/// course's edition (the top-level bvh.h) builds, node for node.
+template <class T, class Traits = shape_traits<T>> using CourseBVH = BVH<T, Traits, course_width>;
+
+/// A tree of width W (2 to 8) without spelling the traits:
+/// BVHOfWidth<Rect, 4> is BVH<Rect, shape_traits<Rect>, 4>.
+template <class T, int W, class Traits = shape_traits<T>> using BVHOfWidth = BVH<T, Traits, W>;
 } // namespace bvh
 
 #endif // BVH_BVH_H

@@ -91,7 +91,7 @@ template <class T, class Progress = NoGenerateProgress>
 long generate_scene(const std::string &kind, long count, std::uint64_t seed, double lo, double hi, bool overlap,
                     std::string &text, Progress progress = Progress()) {
   Random rng(seed);
-  bvh::BVH<T> placed(8, bvh::BVH<T>::unlimited);
+  bvh::BVH<T> placed; // (the default tree: only its collision answers, which are exact, matter here)
   long made = 0;
   // Non-overlapping scenes fill up; give up rather than loop forever.
   const long max_tries = overlap ? count : 1000 + 200 * count;

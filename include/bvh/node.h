@@ -14,6 +14,7 @@
 
 #include "box.h"
 #include "containers.h"
+#include "defaults.h"
 #include "simd.h"
 
 namespace bvh {
@@ -27,9 +28,8 @@ namespace detail {
 // exact one in the node's Info and its float copy in the parent's Node;
 // NodeStore::set_box is the only writer of both.
 
-/// Children per inner node of the course's ternary tree, the default
-/// width (BVH<T, Traits, Width>).
-constexpr int kCourseWidth = 3;
+/// Children per inner node of the course's ternary tree (defaults.h).
+constexpr int kCourseWidth = course_width;
 /// The widths a tree may have.
 constexpr int kMinWidth = 2, kMaxWidth = 8;
 /// Bits 0 .. w - 1: one per child.

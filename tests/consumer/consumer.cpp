@@ -42,7 +42,7 @@ int main(int argc, char **argv) {
     std::cerr << "consumer: " << error << "\n";
     return 1;
   }
-  BVH<Disk> tree(4, 8);
+  BVH<Disk> tree; // the default tree: width 8, up to 32 shapes a leaf
   for (const Disk &d : disks)
     if (!tree.collision(d)) tree.insert(d);
   std::vector<Disk> scan;
