@@ -240,7 +240,7 @@ TEST(packing_bound_admits_dense_packings) {
                                                  : std::vector<double>{10.0, 60.0, 400.0};
   for (double r : radii) {
     // Disks of radius r, hexagonal rows 2r + 0.3 apart (apart after rounding).
-    BVH<Disk> disks; // the generator's tree (generate.h)
+    CourseBVH<Disk> disks(8, CourseBVH<Disk>::unlimited); // the generator's tree (generate.h)
     const double step = 2 * r + 0.3, row = step * std::sqrt(3.0) / 2;
     long n = 0;
     int k = 0;
@@ -251,7 +251,7 @@ TEST(packing_bound_admits_dense_packings) {
     if (double(n) > max_non_overlapping("disks", r)) note("disks r=" + std::to_string(r) + ": " + std::to_string(n));
     CHECK(double(n) <= max_non_overlapping("disks", r));
     // Quads: axis-aligned squares of circumradius r (side r sqrt 2) on a grid.
-    BVH<Quad> quads;
+    CourseBVH<Quad> quads(8, CourseBVH<Quad>::unlimited);
     const double half = r / std::sqrt(2.0), qstep = 2 * half + 0.3;
     long q = 0;
     for (double y = r; y <= 1000 - r; y += qstep)

@@ -65,7 +65,7 @@ inline std::string random_line(const std::string &kind, Random &rng, double lo, 
 
 /// Adds `line` to the scene unless `no_overlap` and it touches a shape
 /// already placed. The check uses the values the loader will read back.
-template <class T> bool place(const std::string &line, bool no_overlap, bvh::BVH<T> &placed) {
+template <class T> bool place(const std::string &line, bool no_overlap, bvh::CourseBVH<T> &placed) {
   if (!no_overlap) return true;
   LineParser in(line.data(), line.data() + line.size() - 1);
   T shape;
@@ -91,7 +91,9 @@ template <class T, class Progress = NoGenerateProgress>
 long generate_scene(const std::string &kind, long count, std::uint64_t seed, double lo, double hi, bool overlap,
                     std::string &text, Progress progress = Progress()) {
   Random rng(seed);
-  bvh::BVH<T> placed; // (the default tree: only its collision answers, which are exact, matter here)
+  // (The course's tree, so that a bvh.out of the course's width alone
+  // compiles no other; only its collision answers, which are exact, matter.)
+  bvh::CourseBVH<T> placed(8, bvh::CourseBVH<T>::unlimited);
   long made = 0;
   // Non-overlapping scenes fill up; give up rather than loop forever.
   const long max_tries = overlap ? count : 1000 + 200 * count;
