@@ -496,13 +496,14 @@ cli_threads() {
 
 # valgrind memcheck: the default build (SSE2, the huge-page arrays, g++'s
 # libstdc++) for uninitialised reads, which ASan does not see, and leaks:
-# the suites that build, insert, erase and move trees, the two editions
-# against each other, and bvh.out's runs. (The predicates, the reader and
-# construct()'s threads, and the fault injection of test_exceptions, are
-# ASan's and ThreadSanitizer's: their memory is checked there.) Two streams
-# side by side, each starting as soon as its programs are built (the build
-# marks each: $BUILD/NAME.built): three suites of build/test_units, then
-# bvh.out's runs; and its two insert_disjoint suites, then
+# the suites that build, insert, erase and move trees, insert_disjoint's
+# lanes on handles (test_lazy_handles), the two editions against each
+# other, and bvh.out's runs. (The predicates, the reader, construct()'s
+# threads, test_disjoint's lanes and the fault injection of test_exceptions
+# are ASan's and ThreadSanitizer's: their memory is checked there.) Two
+# streams side by side, each starting as soon as its programs are built
+# (the build marks each: $BUILD/NAME.built): three suites of
+# build/test_units, then bvh.out's runs; and test_lazy_handles, then
 # build/test_editions. The layer is the run's longest chain of work: in one
 # stream, it would end after everything else.
 VG=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=all --show-leak-kinds=all)
@@ -532,7 +533,6 @@ valgrind_units() {
 valgrind_lanes() {
   wait_built test_units
   BVH_TEST_SCALE=0.05 run_suite valgrind_test_lazy_handles "${VG[@]}" "$BUILD/test_units" lazy_handles
-  BVH_TEST_SCALE=0.02 run_suite valgrind_test_disjoint "${VG[@]}" "$BUILD/test_units" disjoint
   wait_built test_editions
   # (nouserintercepts: the test's own operator new, which fails the copies'
   # allocations one by one, stays in place)
