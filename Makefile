@@ -65,7 +65,7 @@ TSAN_TESTS := $(BUILD)/test_lanes_tsan
 # examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
-.PHONY: bench-edition
+.PHONY: bench-edition bench-windows
 .PHONY: all check check-build course-check test test-build test-build-longest test-build-gcc test-build-san demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions bench-disjoint bench-widths
 
 # $(BUILD)/NAME.built: the program NAME is linked (tests/run.sh's valgrind
@@ -299,6 +299,15 @@ $(BUILD)/bench_dynamic: bench/dynamic.cpp bench/random_disks.h $(HEADERS) $(BUIL
 	@if [ "$$(cat $(BUILD)/bench-peers)" = box2d ]; then lib=-lbox2d; def=-DBENCH_HAVE_BOX2D_LIB; else lib=; def=; fi; \
 	echo "$(CXX) $(BENCH_CXXFLAGS) $$def bench/dynamic.cpp -o $@ $$lib"; \
 	$(CXX) $(BENCH_CXXFLAGS) $$def bench/dynamic.cpp -o $@ $$lib
+
+# ---- make bench-windows (bench/windows.cpp): 1M boxes built in bulk, then
+# 100k window queries, the boxes stored in the tree against ids read through
+# an adaptor from the program's array, beside Boost's packed rtree (when
+# installed); bench/results_windows.txt.
+$(BUILD)/bench_windows: bench/windows.cpp bench/peers.h $(HEADERS) | $(BUILD)
+	$(CXX) $(BENCH_CXXFLAGS) bench/windows.cpp -o $@
+bench-windows: $(BUILD)/bench_windows
+	$(BUILD)/bench_windows $(if $(filter-out 0,$(QUICK)),--n 100000 --q 20000) | tee $(if $(filter-out 0,$(QUICK)),$(BUILD)/results_windows.txt,bench/results_windows.txt)
 
 bench-dynamic: $(BUILD)/bench_dynamic
 	$(BUILD)/bench_dynamic $(if $(filter-out 0,$(QUICK)),--quick) | tee $(if $(filter-out 0,$(QUICK)),$(BUILD)/results_dynamic.txt,bench/results_dynamic.txt)

@@ -1252,6 +1252,92 @@ struct CircleIds {
     return dx * dx + dy * dy <= reach * reach;
   }
 };
+/// Ids into an array of boxes, counting the boxes the tree reads.
+struct CountedBoxIds {
+  const std::vector<bvh::bounds> *boxes;
+  std::size_t *reads;
+  bvh::bounds box(std::uint32_t i) const { return ++*reads, (*boxes)[i]; }
+  bvh::Point center(std::uint32_t i) const {
+    const bvh::bounds &b = (*boxes)[i];
+    return {0.5 * (b.min_x + b.max_x), 0.5 * (b.min_y + b.max_y)};
+  }
+  bool intersect(std::uint32_t i, std::uint32_t j) const { return meet((*boxes)[i], (*boxes)[j]); }
+  /// Box's overlap test, as the tree's query(box) makes it (boundaries
+  /// count).
+  static bool meet(const bvh::bounds &a, const bvh::bounds &b) {
+    return a.min_x <= b.max_x && b.min_x <= a.max_x && a.min_y <= b.max_y && b.min_y <= a.max_y;
+  }
+};
+
+/// query(box) through ids against a scan: boxes of every size, points,
+/// segments, duplicates and boxes sharing a side with the window, at
+/// widths with and without leaf codes, margins and split thresholds
+/// crossed, built by construct() or insert(). Where the leaves have a
+/// summary (widths 4 to 8, leaves of at most 4 W shapes at 8, 4 W - 4
+/// below), a box the codes show surely meeting the window is not read:
+/// the queries read fewer boxes than they find.
+template <int W> void box_queries_through_ids(unsigned seed) {
+  using IdTree = BVH<std::uint32_t, CountedBoxIds, W>;
+  std::size_t found_all = 0, read_all = 0;
+  for (int round = 0; round < std::max(4, scaled(24)); ++round) {
+    note("width " + std::to_string(W) + " BVH_SEED=" + std::to_string(seed) + " round " + std::to_string(round));
+    Maker make(seed + unsigned(round), round % 3 == 0 ? 10.0 : 0.0);
+    std::vector<bvh::bounds> boxes;
+    const int n = round == 0 ? 1 : 200 + int(make.rng() % 1500);
+    for (int i = 0; i < n; ++i) {
+      const double x = make.coord(0, 1000), y = make.coord(0, 1000);
+      const int kind = int(make.rng() % 10);
+      if (kind == 0) boxes.push_back({x, y, x, y}); // a point
+      else if (kind == 1) boxes.push_back({x, y, x, y + make.coord(0, 30)}); // a segment, no width
+      else if (kind == 2 && i > 0) boxes.push_back(boxes[std::size_t(i) - 1]); // a duplicate
+      else if (kind == 3) boxes.push_back({x, y, x + make.coord(0, 300), y + make.coord(0, 300)});
+      else boxes.push_back({x, y, x + make.coord(0, 12), y + make.coord(0, 12)});
+    }
+    std::size_t reads = 0;
+    // (most rounds: leaves as full as a summary holds, 4 W shapes at width
+    // 8, 4 W - 4 at 4 to 7; a leaf of more shapes has none and is read
+    // whole)
+    const int coded = W >= 8 ? 4 * W : W >= 4 ? 4 * W - 4 : bvh::default_split_threshold;
+    const int split = round % 4 == 0 ? 1 + int(make.rng() % 40) : std::min(coded, bvh::default_split_threshold);
+    IdTree tree(split, round % 5 == 4 ? 6 : 0, CountedBoxIds{&boxes, &reads});
+    if (round % 3 == 1) tree.set_margin(2);
+    std::vector<std::uint32_t> ids(boxes.size());
+    for (std::uint32_t i = 0; i < ids.size(); ++i) ids[i] = i;
+    if (round % 2) tree.construct(ids);
+    else
+      for (std::uint32_t i : ids) tree.insert(i);
+    CHECK(tree.validate());
+    for (int q = 0; q < 60; ++q) {
+      bvh::bounds w;
+      const double x = make.coord(-100, 1100), y = make.coord(-100, 1100);
+      if (q % 6 == 0) { // a window sharing a side with a stored box
+        const bvh::bounds &b = boxes[make.rng() % boxes.size()];
+        w = {b.max_x, b.min_y - 5, b.max_x + 40, b.max_y};
+      } else if (q % 6 == 1) {
+        w = {x, y, x, y}; // a point
+      } else {
+        w = {x, y, x + make.coord(0, 400), y + make.coord(0, 400)};
+      }
+      std::vector<std::uint32_t> got, want;
+      const std::size_t before = reads;
+      tree.query(w, [&](std::uint32_t i) { got.push_back(i); });
+      read_all += reads - before;
+      for (std::uint32_t i = 0; i < boxes.size(); ++i)
+        if (CountedBoxIds::meet(boxes[i], w)) want.push_back(i);
+      std::sort(got.begin(), got.end());
+      CHECK(got == want);
+      found_all += want.size();
+    }
+  }
+  note("width " + std::to_string(W) + ": " + std::to_string(read_all) + " boxes read for " + std::to_string(found_all) +
+       " found");
+  if (W >= 4) CHECK(read_all * 2 < found_all);
+  else CHECK(read_all >= found_all); // (no codes: every box found is read)
+}
+TEST(box_queries_through_ids_match_a_scan_width_3) { box_queries_through_ids<3>(base_seed() + 6800); }
+TEST(box_queries_through_ids_read_only_unsure_boxes_width_4) { box_queries_through_ids<4>(base_seed() + 6810); }
+TEST(box_queries_through_ids_read_only_unsure_boxes_width_8) { box_queries_through_ids<8>(base_seed() + 6820); }
+
 TEST(stateful_traits_travel_with_copies_moves_and_swaps) {
   using IdTree = CourseBVH<std::uint32_t, CircleIds>;
   std::mt19937 rng(base_seed() + 6700);

@@ -3,7 +3,8 @@
 // make_summary and extend_summary (the writers of a leaf's codes: a code
 // is always its shape's own box, never a margin's), the leaf-summary test
 // every search reads a leaf through (with_candidates, each_candidate: the
-// shapes of a leaf whose box may meet a query's), and the disk fast
+// shapes of a leaf whose box may meet a query's; with_box_candidates:
+// also those whose box surely meets it), and the disk fast
 // path (DiskProbe, CodeFrame, disk_decision, each_disk_candidate,
 // disk_codes_hit): disks decided from their codes alone where the traits
 // promise inscribed disks.
@@ -123,6 +124,23 @@ template <int W, class Coded, class Plain>
 BVH_ALWAYS_INLINE bool with_candidates(const Node<W> &node, std::size_t n, const Box &box, Coded &&coded, Plain &&plain) {
   if constexpr (Node<W>::kCoded > 0)
     if (node.coded() == int(n)) return coded(node.meets(box, int(n)));
+  (void)box, (void)coded;
+  return plain();
+}
+
+/// with_candidates() for a question about boxes alone (query(box)): with
+/// the summary in use, returns coded(bits, sure), bits as there and sure
+/// those of them whose box surely meets `box` (Node::meets), which need
+/// not be read; else plain().
+template <int W, class Coded, class Plain>
+BVH_ALWAYS_INLINE bool with_box_candidates(const Node<W> &node, std::size_t n, const Box &box, Coded &&coded,
+                                           Plain &&plain) {
+  if constexpr (Node<W>::kCoded > 0)
+    if (node.coded() == int(n)) {
+      std::uint32_t sure = 0;
+      const std::uint32_t bits = node.meets(box, int(n), &sure);
+      return coded(bits, sure);
+    }
   (void)box, (void)coded;
   return plain();
 }

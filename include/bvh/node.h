@@ -174,15 +174,21 @@ template <int W> struct Node {
     set_coded(k - 1);
   }
   /// Leaf with a summary in use (coded() == its count, n shapes): bit i
-  /// set when shape i's code box meets box `b`'s.
-  BVH_ALWAYS_INLINE std::uint32_t meets(const Box &b, int n) const {
+  /// set when shape i's code box meets box `b`'s. With `surely`, also
+  /// *surely: bit i set when shape i's box surely meets `b`, its code box
+  /// reaching strictly past b's on every side (a low code below b's high
+  /// code, a high code above b's low code). As codes_of() never
+  /// decreases, code(u) < code(v) gives u < v: then the boxes meet, an
+  /// empty box's too, without reading the shape.
+  BVH_ALWAYS_INLINE std::uint32_t meets(const Box &b, int n, std::uint32_t *surely = nullptr) const {
     const std::uint32_t c = codes_of(b, frame());
     const std::uint32_t live = n >= 32 ? ~std::uint32_t(0) : (std::uint32_t(1) << n) - 1;
 #if defined(__SSE2__) && !defined(BVH_NO_SIMD)
-    // (a <= b for bytes: min(a, b) == a; lanes past the row are masked off)
+    // (a <= b for bytes: min(a, b) == a; a < b: that, and not a == b;
+    // lanes past the row are masked off)
     const __m128i qx = _mm_set1_epi8(char(c & 255u)), qy = _mm_set1_epi8(char(c >> 8 & 255u));
     const __m128i px = _mm_set1_epi8(char(c >> 16 & 255u)), py = _mm_set1_epi8(char(c >> 24));
-    std::uint32_t bits = 0;
+    std::uint32_t bits = 0, sure = 0;
     for (int g = 0; g < n; g += 16) {
       const auto load = [&](int r) { return _mm_loadu_si128(reinterpret_cast<const __m128i *>(row(r) + g)); };
       const __m128i x0 = load(0), y0 = load(1), x1 = load(2), y1 = load(3);
@@ -190,13 +196,22 @@ template <int W> struct Node {
           _mm_and_si128(_mm_cmpeq_epi8(_mm_min_epu8(x0, px), x0), _mm_cmpeq_epi8(_mm_min_epu8(y0, py), y0)),
           _mm_and_si128(_mm_cmpeq_epi8(_mm_max_epu8(x1, qx), x1), _mm_cmpeq_epi8(_mm_max_epu8(y1, qy), y1)));
       bits |= std::uint32_t(_mm_movemask_epi8(ok)) << g;
+      if (surely) {
+        const __m128i touch = _mm_or_si128(_mm_or_si128(_mm_cmpeq_epi8(x0, px), _mm_cmpeq_epi8(y0, py)),
+                                           _mm_or_si128(_mm_cmpeq_epi8(x1, qx), _mm_cmpeq_epi8(y1, qy)));
+        sure |= std::uint32_t(_mm_movemask_epi8(_mm_andnot_si128(touch, ok))) << g;
+      }
     }
+    if (surely) *surely = sure & live;
     return bits & live;
 #else
     const unsigned lx = c & 255u, ly = c >> 8 & 255u, hx = c >> 16 & 255u, hy = c >> 24;
-    std::uint32_t bits = 0;
-    for (int i = 0; i < n; ++i)
+    std::uint32_t bits = 0, sure = 0;
+    for (int i = 0; i < n; ++i) {
       bits |= std::uint32_t(row(0)[i] <= hx && row(1)[i] <= hy && lx <= row(2)[i] && ly <= row(3)[i]) << i;
+      sure |= std::uint32_t(row(0)[i] < hx && row(1)[i] < hy && lx < row(2)[i] && ly < row(3)[i]) << i;
+    }
+    if (surely) *surely = sure & live;
     return bits & live;
 #endif
   }

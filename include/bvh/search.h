@@ -240,9 +240,10 @@ template <class T, class Tr> BVH_ALWAYS_INLINE bool overlap_found(const Tr &trai
 
 /// The question of query(box) (shape null) and query(shape): calls
 /// visit(s) on each stored shape s that overlap_found(), until it returns
-/// false. With `shape`, where disks are decided from codes (disk_probe), a
-/// disk that surely misses is not read and one that surely meets is not
-/// tested again.
+/// false. Without `shape`, a shape whose code box surely meets the box is
+/// not read (with_box_candidates). With `shape`, where disks are decided
+/// from codes (disk_probe), a disk that surely misses is not read and one
+/// that surely meets is not tested again.
 template <class T, class Tr, int W, class V> struct OverlapQuestion {
   const Core<T, Tr, W> &core;
   const Box &box;
@@ -256,6 +257,18 @@ template <class T, class Tr, int W, class V> struct OverlapQuestion {
     const auto tested = [&](std::size_t i) BVH_LAMBDA_INLINE {
       return !overlap_found(core.traits, v[i], box, shape) || visit(v[i]);
     };
+    // query(box): a shape whose codes show that its box surely meets the
+    // box is found without reading its box (through an adaptor, a read of
+    // the program's own arrays), in the same order as the others.
+    if (!shape)
+      return with_box_candidates(
+          node, v.size(), box,
+          [&](std::uint32_t bits, std::uint32_t sure) BVH_LAMBDA_INLINE {
+            return each_bit(bits, [&](std::size_t i) BVH_LAMBDA_INLINE {
+              return (sure >> i & 1u) ? visit(v[i]) : tested(i);
+            });
+          },
+          [&]() BVH_LAMBDA_INLINE { return each_index(0, v.size(), tested); });
     return with_candidates(
         node, v.size(), box,
         [&](std::uint32_t bits) BVH_LAMBDA_INLINE {
