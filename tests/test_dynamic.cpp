@@ -1297,7 +1297,8 @@ template <int W> void box_queries_through_ids(unsigned seed) {
     // (most rounds: leaves as full as a summary holds, 4 W shapes at width
     // 8, 4 W - 4 at 4 to 7; a leaf of more shapes has none and is read
     // whole)
-    const int coded = W >= 8 ? 4 * W : W >= 4 ? 4 * W - 4 : bvh::default_split_threshold;
+    constexpr int kCoded = bvh::detail::Node<W>::kCoded;
+    const int coded = kCoded > 0 ? kCoded : bvh::default_split_threshold;
     const int split = round % 4 == 0 ? 1 + int(make.rng() % 40) : std::min(coded, bvh::default_split_threshold);
     IdTree tree(split, round % 5 == 4 ? 6 : 0, CountedBoxIds{&boxes, &reads});
     if (round % 3 == 1) tree.set_margin(2);
