@@ -80,29 +80,40 @@ all:
 	  *) $(MAKE) --no-print-directory -j$(JOBS) bvh.out ;; esac
 
 # bvh.out: main.cpp and cli/ (cli/cli.h names the parts), compiled one file
-# at a time into $(BUILD)/cli/ and linked: its trees are two translation
-# units of about the same size, two shape kinds each
-# (cli/run_disks_triangles.cpp, cli/run_quads_shapes.cpp), which make -j
-# compiles side by side (first). CLI_COURSE: the parts of a build with the
-# course's width 3 alone (cli/course_width.cpp instead of cli/widths.cpp
-# and those two).
-CLI_COMMON := main cli/options cli/progress
-CLI_ALL := cli/run_quads_shapes cli/run_disks_triangles $(CLI_COMMON) cli/widths
-CLI_COURSE := cli/course_width $(CLI_COMMON)
+# at a time into $(BUILD)/cli/ and linked. WIDTHS: the tree widths it has.
+# course (the default): the course's width 3 alone, what it runs unless told
+# --width (its trees: two translation units of two shape kinds each,
+# cli/course_*.cpp, which make -j compiles side by side; --width 2, 4 or 8
+# is refused with the way to build them). all: widths 2, 4 and 8 too
+# (cli/wider_*.cpp, three times those trees). $(BUILD)/cli-widths holds the
+# value bvh.out was linked with, so that changing it relinks.
+WIDTHS ?= course
+ifeq ($(filter course all,$(WIDTHS)),)
+$(error WIDTHS must be course (width 3 alone, the default) or all (2, 3, 4 and 8), not '$(WIDTHS)')
+endif
+CLI_WIDER_course := cli/course_width_only
+CLI_WIDER_all := cli/wider_quads_shapes cli/wider_disks_triangles
+CLI_COMMON := cli/course_quads_shapes cli/course_disks_triangles main cli/options cli/progress cli/kinds
+CLI_PARTS = $(CLI_WIDER_$(WIDTHS)) $(CLI_COMMON)
 CLI_HEADERS := cli/cli.h cli/progress.h
-bvh.out: $(CLI_ALL:%=$(BUILD)/cli/%.o)
-	$(CXX) $(CXXFLAGS) $^ -o $@
+bvh.out: $(CLI_PARTS:%=$(BUILD)/cli/%.o) $(BUILD)/cli-widths
+	$(CXX) $(CXXFLAGS) $(CLI_PARTS:%=$(BUILD)/cli/%.o) -o $@
 	$(BUILT_MARK)
 $(BUILD)/cli/%.o: %.cpp cli/run.h $(CLI_HEADERS) $(HEADERS)
 	@mkdir -p $(@D)
 	$(CXX) $(CXXFLAGS) -Iinclude -c $< -o $@
+# (Rewritten only when WIDTHS changes: make compares its time, not its recipe.)
+$(BUILD)/cli-widths: cli-widths-check
+	@mkdir -p $(BUILD); if [ "$$(cat $@ 2>/dev/null)" != "$(WIDTHS)" ]; then echo "$(WIDTHS)" > $@; fi
+.PHONY: cli-widths-check
+cli-widths-check:
 
-# The unit suites at make check's -Og (UNIT_CXXFLAGS): they test behaviour
-# at their full rounds in a few seconds either way, and -Og compiles in about
-# three fifths of -O1's time, for about a quarter more run time. The -O2
-# build (CXXFLAGS) is bvh.out's, whose output the golden, command-line,
+# The unit suites at -Og (UNIT_CXXFLAGS): they test behaviour at their full
+# rounds in a few seconds either way, and -Og compiles in about three fifths
+# of -O1's time, for about a quarter more run time. The -O2 build
+# (CXXFLAGS) is bvh.out's, whose output the golden, command-line,
 # course-framework and browser layers check.
-UNIT_CXXFLAGS ?= $(CHECK_CXXFLAGS)
+UNIT_CXXFLAGS ?= -std=c++17 -Og -Wall -Wextra -pedantic
 $(BUILD)/test_%: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -Iinclude -Itests $< -o $@
 
@@ -121,7 +132,7 @@ $(BUILD)/test_editions: $(EDITIONS_SOURCES) | $(BUILD)
 $(BUILD)/test_editions_san: $(EDITIONS_SOURCES) | $(BUILD)
 	$(SAN_CXX) $(SANITIZE) -I. -Iinclude -Itests $< -o $@
 $(BUILD)/check/test_editions: $(EDITIONS_SOURCES) | $(BUILD)/check
-	$(CXX) $(CHECK_CXXFLAGS) -I. -Iinclude -Itests $< -o $@
+	$(CHECK_CXX) $(CHECK_CXXFLAGS) -I. -Iinclude -Itests $< -o $@
 
 $(BUILD)/test_units: $(UNITY_SOURCES) | $(BUILD)
 	$(CXX) $(UNIT_CXXFLAGS) -Iinclude -Itests $< -o $@
@@ -130,10 +141,12 @@ $(BUILD)/test_units: $(UNITY_SOURCES) | $(BUILD)
 $(BUILD)/test_units_san: $(UNITY_SOURCES) | $(BUILD)
 	$(SAN_CXX) $(SANITIZE) $(UNITS_SAN_FLAGS) -Iinclude -Itests $< -o $@
 
-# The sanitized CLI runs the command-line cases, all at the course's width
-# 3: it is built of CLI_COURSE, that width alone (half the compile;
-# --width 2, 4 or 8 is then an error).
-$(BUILD)/bvh_san.out: $(CLI_COURSE:%=$(BUILD)/cli_san/%.o)
+# The sanitized CLI has every width (WIDTHS=all's parts): the
+# command-line cases at the course's width 3 and tests/cli_widths.sh's at
+# the others run on it (clang++ compiles these at -O0 in about half of
+# g++'s time at -O2 for the course's width alone).
+CLI_SAN_PARTS := $(CLI_WIDER_all) $(CLI_COMMON)
+$(BUILD)/bvh_san.out: $(CLI_SAN_PARTS:%=$(BUILD)/cli_san/%.o)
 	$(SAN_CXX) $(SANITIZE) $^ -o $@
 $(BUILD)/cli_san/%.o: %.cpp cli/run.h $(CLI_HEADERS) $(HEADERS)
 	@mkdir -p $(@D)
@@ -197,21 +210,29 @@ test-build: test-build-longest $(BUILD)/bvh_san.out test-build-san test-build-gc
 test: | $(BUILD)
 	+@MAKE="$(MAKE)" JOBS="$(JOBS)" CXX="$(CXX)" COURSE_DATA="$(COURSE_DATA)" BUILD="$(BUILD)" bash tests/run.sh
 
-# make check: the quick layer (about 3 minutes from scratch on 2 cores):
-# bvh.out, the unit tests built at -Og into $(BUILD)/check (two fifths of the
-# compile time of -O2) and run at CHECK_SCALE of their random rounds, and the golden
-# stdout on the course's scenes and ours. Each unit test runs as soon as it
-# is built, beside the other compiles (its output: $(BUILD)/check/test_*.out,
-# which tests/run.sh --quick removes first and then reads).
-CHECK_CXXFLAGS ?= -std=c++17 -Og -Wall -Wextra -pedantic
-CHECK_SCALE ?= 0.5
-CHECK_TESTS := $(UNITS:%=$(BUILD)/check/test_%)
-$(BUILD)/check/test_%: tests/test_%.cpp $(TEST_HEADERS) $(HEADERS) | $(BUILD)/check
-	$(CXX) $(CHECK_CXXFLAGS) -Iinclude -Itests $< -o $@
-$(BUILD)/check/test_%.out: $(BUILD)/check/test_%
+# make check: the quick layer (under a minute from scratch on 2 cores):
+# bvh.out, the unit suites as one program ($(BUILD)/check/test_units, as
+# make test's) and test_editions, run at CHECK_SCALE of their random
+# rounds, and the golden stdout on the course's scenes and ours. The unit
+# programs are compiled by CHECK_CXX with CHECK_CXXFLAGS: tests/run.sh
+# --quick sets clang++ at -O0 when it is installed (it compiles them in a
+# quarter of g++'s time at -Og, and runs them at a third of the speed:
+# hence the smaller scale), else g++ at UNIT_CXXFLAGS. Each suite runs as a
+# make target of its own beside the other compiles (its output:
+# $(BUILD)/check/test_*.out, which tests/run.sh --quick removes first and
+# then reads).
+CHECK_CXX ?= $(CXX)
+CHECK_CXXFLAGS ?= $(UNIT_CXXFLAGS)
+CHECK_SCALE ?= 0.25
+CHECK_SUITES := $(UNITY) editions
+$(BUILD)/check/test_units: $(UNITY_SOURCES) | $(BUILD)/check
+	$(CHECK_CXX) $(CHECK_CXXFLAGS) -Iinclude -Itests $< -o $@
+$(UNITY:%=$(BUILD)/check/test_%.out): $(BUILD)/check/test_%.out: $(BUILD)/check/test_units
+	@BVH_TEST_SCALE=$(CHECK_SCALE) $< $* >$@.tmp 2>&1; echo "exit status $$?" >>$@.tmp; mv $@.tmp $@
+$(BUILD)/check/test_editions.out: $(BUILD)/check/test_editions
 	@BVH_TEST_SCALE=$(CHECK_SCALE) $< >$@.tmp 2>&1; echo "exit status $$?" >>$@.tmp; mv $@.tmp $@
 # (Longest compiles first.)
-check-build: bvh.out $(BUILD)/check/test_dynamic.out $(BUILD)/check/test_bvh.out $(CHECK_TESTS:%=%.out)
+check-build: $(BUILD)/check/test_units bvh.out $(CHECK_SUITES:%=$(BUILD)/check/test_%.out)
 check: | $(BUILD)
 	+@MAKE="$(MAKE)" JOBS="$(JOBS)" CXX="$(CXX)" COURSE_DATA="$(COURSE_DATA)" BUILD="$(BUILD)" bash tests/run.sh --quick
 

@@ -26,6 +26,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <iostream>
 #include <memory>
 #include <new>
@@ -76,7 +77,7 @@ const char *const kHelp =
     "  --threads N              threads for the bulk build and the sampling (1 to 1024;\n"
     "                           default: all cores); the output is the same for every N\n"
     "  --width W                children per inner node: 2, 3 (the course's, default), 4\n"
-    "                           or 8; wider trees are shallower and smaller\n"
+    "                           or 8; wider trees are shallower and smaller%s\n"
     "  --pairs                  print 'overlapping pairs: N', the number of pairs of shapes\n"
     "                           in the tree that intersect (after the statistics, if any)\n"
     "  --generate KIND COUNT    write COUNT random shapes of KIND (disks, triangles, quads,\n"
@@ -88,6 +89,29 @@ const char *const kHelp =
     "\n"
     "When stderr is a terminal, a run longer than a second shows its progress there\n"
     "(reading, building or sampling, writing); never when stderr is redirected.\n";
+
+// --help: the usage and kHelp, whose --width line ends with what this build
+// has (widths_built_note: the default build has width 3 alone).
+void print_help() {
+  const std::string note = widths_built_note();
+  std::string wrapped, line;
+  if (!note.empty()) {
+    // The note in parentheses, word-wrapped under the options' descriptions.
+    std::istringstream words("(" + note + ")");
+    const std::string indent(27, ' ');
+    for (std::string word; words >> word;) {
+      if (!line.empty() && indent.size() + line.size() + 1 + word.size() > 85) {
+        wrapped += "\n" + indent + line;
+        line.clear();
+      }
+      line += (line.empty() ? "" : " ") + word;
+    }
+    wrapped += "\n" + indent + line;
+  }
+  const std::string help = kHelp;
+  const std::size_t at = help.find("%s");
+  std::cout << kUsage << "\n" << help.substr(0, at) << wrapped << help.substr(at + 2);
+}
 
 using namespace bvh_scene;
 
@@ -213,7 +237,7 @@ bool check_files(const Options &o, InputFile &input, std::string &error) {
 int bvh_main(int argc, char **argv) {
   for (int i = 1; i < argc; ++i)
     if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h") {
-      std::cout << kUsage << "\n" << kHelp;
+      print_help();
       return 0;
     }
   Options o;

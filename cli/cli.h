@@ -5,17 +5,17 @@
 //   progress.h/.cpp    the progress line on a terminal
 //   run.h              the work on one shape kind: the course's workflow on a
 //                      scene, run<T, W>, and --generate's, generate<T>
-//   run_disks_triangles.cpp, run_quads_shapes.cpp
-//                      run.h for two shape kinds each, at every width: two
-//                      halves of about the same size, which make -j
-//                      compiles side by side (what a kind's trees share
-//                      compiles once, and what a width's share twice: more
-//                      units would each compile those again)
-//   widths.cpp         the dispatch on the kind (and run.h's on --width)
-//   course_width.cpp   the dispatch of a build with the course's width 3
-//                      alone, linked instead of widths.cpp and run_*.cpp
-//                      (make test's sanitized bvh.out and the CMake package
-//                      test: a quarter of the trees to compile)
+//   kinds.cpp          the dispatch on the scene's kind and on --width
+//   course_disks_triangles.cpp, course_quads_shapes.cpp
+//                      run.h at the course's width 3, two shape kinds each:
+//                      two halves of about the same size, which make -j
+//                      compiles side by side
+//   course_width_only.cpp
+//                      the default build's other widths: refused, with the
+//                      way to build them (a quarter of the trees to compile)
+//   wider_disks_triangles.cpp, wider_quads_shapes.cpp
+//                      instead, in a build with every width (make
+//                      WIDTHS=all): run.h at widths 2, 4 and 8
 #ifndef BVH_CLI_CLI_H
 #define BVH_CLI_CLI_H
 
@@ -81,16 +81,21 @@ bool stdout_written(std::string &error);
 
 /// The course's workflow on the scene o.input, opened as `input`, at the
 /// width o.width, the shape kind by the scene's name; and --generate's scene
-/// of o.kind, sizes from lo to hi. Exit statuses as bvh_main's. Defined by
-/// the build's composition: cli/widths.cpp (every width) or
-/// cli/course_width.cpp (width 3 alone).
+/// of o.kind, sizes from lo to hi. Exit statuses as bvh_main's
+/// (cli/kinds.cpp).
 int run_scene(const Options &o, std::FILE *input);
 int generate_scene_file(const Options &o, double lo, double hi);
 
-/// The same for one shape kind T (cli/run.h; cli/run_disks_triangles.cpp
-/// and cli/run_quads_shapes.cpp instantiate it).
-template <class T> int run_kind(const Options &o, std::FILE *input);
+/// The same for one shape kind T (cli/run.h): at the course's width
+/// (cli/course_*.cpp instantiate it), at o.width, another (cli/wider_*.cpp,
+/// or cli/course_width_only.cpp's refusal), and --generate's.
+template <class T> int run_course_width(const Options &o, std::FILE *input);
+template <class T> int run_other_width(const Options &o, std::FILE *input);
 template <class T> int generate_kind(const Options &o, double lo, double hi);
+
+/// What --help adds to --width's line: which widths this build has (empty
+/// when it has them all).
+const char *widths_built_note();
 
 } // namespace bvh_cli
 

@@ -2,8 +2,8 @@
 // scene (read it, build the tree in bulk, by insertion or by discard-overlap
 // sampling, print the statistics and the pairs, write the picture) at each
 // tree width, and --generate's scene. Instantiated for two kinds a
-// translation unit (cli/run_disks_triangles.cpp, cli/run_quads_shapes.cpp),
-// or at width 3 alone by cli/course_width.cpp.
+// translation unit, at the course's width 3 (cli/course_*.cpp) and at the
+// others (cli/wider_*.cpp).
 #ifndef BVH_CLI_RUN_H
 #define BVH_CLI_RUN_H
 
@@ -167,12 +167,16 @@ template <class T, int W> int run(const Options &o, std::FILE *input) {
   return 0;
 }
 
-template <class T> int run_kind(const Options &o, std::FILE *input) {
+template <class T> int run_course_width(const Options &o, std::FILE *input) {
+  return run<T, bvh::course_width>(o, input);
+}
+
+// (parse_options accepts 2, 3, 4 and 8 alone.)
+template <class T> int run_other_width(const Options &o, std::FILE *input) {
   switch (o.width) {
   case 2: return run<T, 2>(o, input);
   case 4: return run<T, 4>(o, input);
-  case 8: return run<T, 8>(o, input);
-  default: return run<T, 3>(o, input);
+  default: return run<T, 8>(o, input);
   }
 }
 

@@ -78,6 +78,27 @@ expect cli_width_five 2 "--width needs 2, 3, 4 or 8, not '5'" -- -i $good -o "$o
 expect cli_width_sixteen 2 "--width needs 2, 3, 4 or 8, not '16'" -- -i $good -o "$o" --width 16
 expect cli_width_not_a_number 2 "--width needs 2, 3, 4 or 8, not 'x'" -- -i $good -o "$o" --width x
 expect cli_width_missing_value 2 "--width needs a value" -- -i $good -o "$o" --width
+# The default build has the course's width 3 alone, and --help says so:
+# --width 2, 4 or 8 is then refused with the way to build them, no file
+# written. A build with every width (make WIDTHS=all; make test's sanitized
+# one) runs them.
+if "$bin" --help | grep -q "has the course's width 3 alone"; then
+  for w in 2 4 8; do
+    expect cli_width_${w}_not_built_says_how_to_build_it 2 \
+      "^bvh.out: --width $w: this bvh.out has the course's width 3 alone; make WIDTHS=all \(CMake: -DBVH_CLI_ALL_WIDTHS=ON\) builds 2, 4 and 8 too$" \
+      -- -i $good -o "$o" --width $w
+  done
+else
+  for w in 2 4 8; do
+    rm -f "$o"
+    if "$bin" -i $good -o "$o" --width $w --depth_limit 3 >"$dir/stdout" 2>"$dir/stderr" && [ ! -s "$dir/stderr" ] &&
+      grep -q "^node count:" "$dir/stdout" && grep -q "</svg>" "$o"; then
+      echo "ok cli_width_${w}_built_and_runs$tag"
+    else
+      echo "FAIL cli_width_${w}_built_and_runs$tag $(head -c 200 "$dir/stderr")"
+    fi
+  done
+fi
 expect cli_fractional_depth 2 "--depth_limit needs an integer" -- -i $good -o "$o" --depth_limit 2.5
 expect cli_huge_number 2 "--split_threshold needs an integer" -- -i $good -o "$o" --split_threshold 99999999999999999999
 # The limits' extremes: up to INT_MAX, which the library takes (a tree of

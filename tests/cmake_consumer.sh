@@ -33,15 +33,14 @@ step() { # NAME LOG COMMAND...: one case, passing when COMMAND exits 0
   fi
 }
 
-# 1. bvh itself: configure, build (bvh.out), install. (Release's flags are
-# -O0 here, and bvh.out has the course's width 3 alone
-# (-DBVH_CLI_COURSE_WIDTH_ONLY=ON), for a quick build: what is tested is the
-# build and the install, not the program's speed nor its other widths (the
+# 1. bvh itself: configure, build (bvh.out, the course's width 3 alone by
+# default), install. (Release's flags are -O0 here, for a quick build: what
+# is tested is the build and the install, not the program's speed (the
 # golden run below is at width 3); the default -O3 is checked below by a
-# configure.)
+# configure, and the sources of -DBVH_CLI_ALL_WIDTHS=ON by another.)
 if step cmake_configure_build_install_bvh bvh bash -c "
   cmake -S '$src' -B '$dir/bvh-build' -DCMAKE_INSTALL_PREFIX='$prefix' \
-    -DCMAKE_CXX_FLAGS_RELEASE='-O0' -DBVH_CLI_COURSE_WIDTH_ONLY=ON &&
+    -DCMAKE_CXX_FLAGS_RELEASE='-O0' &&
   cmake --build '$dir/bvh-build' -j $jobs && cmake --install '$dir/bvh-build'"; then
   missing=
   for f in include/bvh/bvh.h include/bvh/shapes.h include/bvh/intersect.h include/bvh/distance.h \
@@ -68,6 +67,21 @@ if step cmake_configure_build_install_bvh bvh bash -c "
     echo "ok cmake_default_build_type_is_release"
   else
     echo "FAIL cmake_default_build_type_is_release $(grep '^CMAKE_BUILD_TYPE' "$dir/bvh-default/CMakeCache.txt"); see $dir/bvh-default/compile_commands.json"
+  fi
+
+  # bvh.out's widths: the course's 3 alone by default, every width with
+  # -DBVH_CLI_ALL_WIDTHS=ON (configure only: make test's sanitized bvh.out
+  # compiles the same sources).
+  cc=$dir/bvh-default/compile_commands.json
+  if grep -q 'cli/course_width_only\.cpp' "$cc" && ! grep -q 'cli/wider_' "$cc" &&
+    cmake -S "$src" -B "$dir/bvh-widths" -DBVH_CLI_ALL_WIDTHS=ON -DCMAKE_EXPORT_COMPILE_COMMANDS=ON \
+      >"$dir/bvh-widths.log" 2>&1 &&
+    grep -q 'cli/wider_disks_triangles\.cpp' "$dir/bvh-widths/compile_commands.json" &&
+    grep -q 'cli/wider_quads_shapes\.cpp' "$dir/bvh-widths/compile_commands.json" &&
+    ! grep -q 'cli/course_width_only\.cpp' "$dir/bvh-widths/compile_commands.json"; then
+    echo "ok cmake_cli_course_width_by_default_all_widths_on_request"
+  else
+    echo "FAIL cmake_cli_course_width_by_default_all_widths_on_request see $cc and $dir/bvh-widths/compile_commands.json"
   fi
 
   # 2. find_package against the install; the package must come from the prefix.

@@ -222,23 +222,25 @@ unit_tests() {
   # (collision()'s scalar fallback, BVH_NO_SIMD: the sanitizer layer's build.)
 }
 
-# make check's unit tests: the same suites, built at -Og into $BUILD/check
-# (the Makefile's CHECK_CXXFLAGS: two fifths of the compile time of -O2) and already
-# run by the build, each at CHECK_SCALE of its random rounds, as soon as it
-# was built: here their output ($BUILD/check/test_*.out) is read.
+# make check's unit tests: the same suites, built into $BUILD/check (by
+# clang++ -O0 when it is installed: the Makefile's CHECK_CXX) and already
+# run by the build, each at CHECK_SCALE of its random rounds, as soon as its
+# program was built: here their output ($BUILD/check/test_*.out) is read.
 unit_tests_quick() {
-  local t out LOG rc
-  for t in bvh threads intersect dynamic moving lazy_handles parse editions; do
+  local t out LOG rc bin
+  for t in bvh threads intersect dynamic moving lazy_handles parse disjoint editions; do
     out=$BUILD/check/test_$t.out
+    bin=$BUILD/check/test_units
+    [ "$t" = editions ] && bin=$BUILD/check/test_editions
     logname "test_$t"
     if [ ! -f "$out" ]; then
       : >"$LOG"
-      suite_result "test_$t" "$LOG" 1 "$BUILD/check/test_$t"
+      suite_result "test_$t" "$LOG" 1 "$bin"
       continue
     fi
     rc=$(tail -n 1 "$out" | sed -n 's/^exit status //p')
     sed '$d' "$out" >"$LOG"
-    suite_result "test_$t" "$LOG" "${rc:-1}" "$BUILD/check/test_$t"
+    suite_result "test_$t" "$LOG" "${rc:-1}" "$bin"
   done
 }
 
@@ -486,7 +488,16 @@ cli_errors() {
 
 # bvh.out --width W: each tree and picture checked against the rules every
 # width shares, and what the width must not change (tests/cli_widths.sh).
-cli_widths() { python_script cli_widths cli_width_; }
+# (On the sanitized bvh.out: the default bvh.out has the course's width 3
+# alone, and the sanitized one every width.)
+cli_widths() {
+  if have python3; then
+    bash tests/cli_widths.sh "$OUT/cli_widths" "$BUILD/bvh_san.out" >"$LOGS/cli_widths.log" 2>&1
+    relay "cli_width_*" "$LOGS/cli_widths.log"
+  else
+    bad python3_available "python3 is missing: apt-get install python3"
+  fi
+}
 
 # bvh.out --threads N: the same stdout and picture for every N (tests/cli_threads.sh).
 cli_threads() {
@@ -614,7 +625,15 @@ fi
 targets=()
 if [ "$QUICK" = yes ]; then
   rm -f "$BUILD"/check/test_*.out # make runs each unit test again
+  # (The folder made first: a target waiting for it would let make -j start
+  # shorter compiles before the longest.)
+  mkdir -p "$BUILD/check"
   targets+=(check-build)
+  # The unit programs: clang++ at -O0 when installed (see the Makefile's
+  # CHECK_CXX), else the Makefile's default (CXX at -Og).
+  if have clang++; then
+    export CHECK_CXX=clang++ CHECK_CXXFLAGS="-std=c++17 -O0 -Wall -Wextra -pedantic"
+  fi
 else
   for prog in "$BUILD/test_units" "$BUILD/test_editions" bvh.out; do
     rm -f "$BUILD/${prog##*/}.built"

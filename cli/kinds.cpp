@@ -1,8 +1,14 @@
-// cli/widths.cpp — bvh.out's dispatch on the shape kind (the kinds' trees,
-// at every width: cli/run_disks_triangles.cpp, cli/run_quads_shapes.cpp).
+// cli/kinds.cpp — bvh.out's dispatch on the scene's shape kind and on
+// --width: the course's width 3 (cli/course_*.cpp), or another
+// (cli/wider_*.cpp in a build with every width, cli/course_width_only.cpp
+// in the default build).
 #include "cli.h"
 
 namespace bvh_cli {
+
+template <class T> int run_kind(const Options &o, std::FILE *input) {
+  return o.width == bvh::course_width ? run_course_width<T>(o, input) : run_other_width<T>(o, input);
+}
 
 int run_scene(const Options &o, std::FILE *input) {
   if (ends_with(o.input, ".disks")) return run_kind<bvh::Disk>(o, input);
