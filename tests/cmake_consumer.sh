@@ -69,21 +69,6 @@ if step cmake_configure_build_install_bvh bvh bash -c "
     echo "FAIL cmake_default_build_type_is_release $(grep '^CMAKE_BUILD_TYPE' "$dir/bvh-default/CMakeCache.txt"); see $dir/bvh-default/compile_commands.json"
   fi
 
-  # bvh.out's widths: the course's 3 alone by default, every width with
-  # -DBVH_CLI_ALL_WIDTHS=ON (configure only: make test's sanitized bvh.out
-  # compiles the same sources).
-  cc=$dir/bvh-default/compile_commands.json
-  if grep -q 'cli/course_width_only\.cpp' "$cc" && ! grep -q 'cli/wider_' "$cc" &&
-    cmake -S "$src" -B "$dir/bvh-widths" -DBVH_CLI_ALL_WIDTHS=ON -DCMAKE_EXPORT_COMPILE_COMMANDS=ON \
-      >"$dir/bvh-widths.log" 2>&1 &&
-    grep -q 'cli/wider_disks_triangles\.cpp' "$dir/bvh-widths/compile_commands.json" &&
-    grep -q 'cli/wider_quads_shapes\.cpp' "$dir/bvh-widths/compile_commands.json" &&
-    ! grep -q 'cli/course_width_only\.cpp' "$dir/bvh-widths/compile_commands.json"; then
-    echo "ok cmake_cli_course_width_by_default_all_widths_on_request"
-  else
-    echo "FAIL cmake_cli_course_width_by_default_all_widths_on_request see $cc and $dir/bvh-widths/compile_commands.json"
-  fi
-
   # 2. find_package against the install; the package must come from the prefix.
   if step cmake_consumer_find_package consumer-find bash -c "
     cmake -S tests/consumer -B '$dir/consumer-find' -DCMAKE_PREFIX_PATH='$prefix' &&
@@ -131,9 +116,24 @@ if step cmake_consumer_add_subdirectory consumer-sub bash -c "
 fi
 
 # 4. A build type that is given stands (configure only).
-if cmake -S "$src" -B "$dir/bvh-debug" -DCMAKE_BUILD_TYPE=Debug >"$dir/bvh-debug.log" 2>&1 &&
+# (This configure also asks for bvh.out with every width: see below.)
+if cmake -S "$src" -B "$dir/bvh-debug" -DCMAKE_BUILD_TYPE=Debug -DBVH_CLI_ALL_WIDTHS=ON \
+  -DCMAKE_EXPORT_COMPILE_COMMANDS=ON >"$dir/bvh-debug.log" 2>&1 &&
   grep -q '^CMAKE_BUILD_TYPE:STRING=Debug$' "$dir/bvh-debug/CMakeCache.txt"; then
   echo "ok cmake_given_build_type_stands"
 else
   echo "FAIL cmake_given_build_type_stands see $dir/bvh-debug.log"
+fi
+
+# bvh.out's widths: the course's 3 alone by default (the Release configure
+# above), every width with -DBVH_CLI_ALL_WIDTHS=ON (the Debug one;
+# configures only: make test's sanitized bvh.out compiles the same sources).
+cc=$dir/bvh-default/compile_commands.json
+wide=$dir/bvh-debug/compile_commands.json
+if [ -f "$cc" ] && grep -q 'cli/course_width_only\.cpp' "$cc" && ! grep -q 'cli/wider_' "$cc" &&
+  [ -f "$wide" ] && grep -q 'cli/wider_disks_triangles\.cpp' "$wide" && grep -q 'cli/wider_quads_shapes\.cpp' "$wide" &&
+  ! grep -q 'cli/course_width_only\.cpp' "$wide"; then
+  echo "ok cmake_cli_course_width_by_default_all_widths_on_request"
+else
+  echo "FAIL cmake_cli_course_width_by_default_all_widths_on_request see $cc and $wide"
 fi
