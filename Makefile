@@ -65,7 +65,7 @@ TSAN_TESTS := $(BUILD)/test_lanes_tsan
 # examples/*.cpp: the library snippets of README.txt and docs/ as programs that check themselves.
 EXAMPLES := $(patsubst examples/%.cpp,$(BUILD)/example_%,$(wildcard examples/*.cpp))
 
-.PHONY: bench-edition bench-windows
+.PHONY: bench-edition bench-windows bench-bulk
 .PHONY: all check check-build course-check test test-build test-build-longest test-build-gcc test-build-san demo bench clean fuzz bench-dynamic bench-builders bench-moving bench-instructions bench-disjoint bench-widths
 
 # $(BUILD)/NAME.built: the program NAME is linked (tests/run.sh's valgrind
@@ -294,6 +294,26 @@ BENCH_ARGS = $(if $(RUNS),--runs $(RUNS)) $(if $(filter-out 0,$(QUICK)),--quick)
 bench: bvh.out $(BUILD)/bench $(BUILD)/bench_moving
 	$(BUILD)/bench $(BENCH_ARGS)
 	$(MAKE) --no-print-directory bench-moving
+	$(MAKE) --no-print-directory bench-bulk
+
+# ---- make bench-bulk (bench/bulk.cpp; make bench runs it too): W3 (bulk build + 100k
+# probes) and all intersecting pairs on make bench's W1 and W2 disks, ours against
+# GEOS's TemplateSTRtree and Flatbush (from PEERS, ../shared/peers: benchmark-only,
+# never part of the library, bvh.out or the tests), Boost's packed R-tree and CGAL's
+# box_intersection_d (libcgal-dev), each skipped with a notice when absent; every
+# method's count must agree. Table to stdout and bench/results_bulk.txt; RUNS=n
+# (default 3); QUICK=1 100k disks, into $(BUILD)/results_bulk.txt.
+PEERS ?= ../shared/peers
+BULK_PEERS = $(if $(wildcard $(PEERS)/geos/include/geos/index/strtree/TemplateSTRtree.h),-I$(PEERS)/geos/include \
+  -DUSE_UNSTABLE_GEOS_CPP_API -DBENCH_HAVE_GEOS) $(if $(wildcard $(PEERS)/flatbush/flatbush.h),-I$(PEERS)/flatbush \
+  -DFLATBUSH_SPAN -DBENCH_HAVE_FLATBUSH)
+$(BUILD)/bench_bulk: bench/bulk.cpp bench/peers.h $(HEADERS) | $(BUILD)
+	@id=$$(sha1sum include/bvh/bvh.h | cut -c1-12); head=$$(git rev-parse --short HEAD 2>/dev/null || echo none); \
+	info="bvh.h sha1 $$id, HEAD $$head"; \
+	echo "$(CXX) $(BENCH_CXXFLAGS) $(BULK_PEERS) bench/bulk.cpp -o $@   ($$info)"; \
+	$(CXX) $(BENCH_CXXFLAGS) $(BULK_PEERS) -DBENCH_BUILD_INFO="\"$$info\"" bench/bulk.cpp -o $@
+bench-bulk: $(BUILD)/bench_bulk
+	$(BUILD)/bench_bulk $(if $(RUNS),--runs $(RUNS)) $(if $(filter-out 0,$(QUICK)),--quick) | tee $(if $(filter-out 0,$(QUICK)),$(BUILD)/results_bulk.txt,bench/results_bulk.txt)
 
 # Which peers this machine has; the file changes (forcing a rebuild) only when that does.
 $(BUILD)/bench-peers: bench-peers
