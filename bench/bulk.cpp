@@ -108,15 +108,21 @@ template <class Tree> Run w3_ours(const std::vector<Disk> &disks, const std::vec
 }
 
 #if defined(BENCH_HAVE_GEOS)
-Run w3_geos(const std::vector<Disk> &disks, const std::vector<Disk> &probes, std::size_t capacity) {
-  Run r;
-  Clock::time_point t = Clock::now();
-  geos::index::strtree::TemplateSTRtree<std::uint32_t> tree(capacity, disks.size());
+using GeosTree = geos::index::strtree::TemplateSTRtree<std::uint32_t>;
+/// The disks' envelopes into `tree`, then its STR packing.
+void build_geos(GeosTree &tree, const std::vector<Disk> &disks) {
   for (std::size_t i = 0; i < disks.size(); ++i) {
     const Box4 b = box_of(disks[i]);
     tree.insert(geos::geom::Envelope(b.x0, b.x1, b.y0, b.y1), std::uint32_t(i));
   }
   tree.build();
+}
+
+Run w3_geos(const std::vector<Disk> &disks, const std::vector<Disk> &probes, std::size_t capacity) {
+  Run r;
+  Clock::time_point t = Clock::now();
+  GeosTree tree(capacity, disks.size());
+  build_geos(tree, disks);
   r.build = seconds_since(t);
   t = Clock::now();
   for (const Disk &p : probes) {
@@ -208,12 +214,8 @@ template <class Tree> Run pairs_ours(const std::vector<Disk> &disks, const std::
 Run pairs_geos(const std::vector<Disk> &disks, const std::vector<Disk> &, std::size_t capacity) {
   Run r;
   Clock::time_point t = Clock::now();
-  geos::index::strtree::TemplateSTRtree<std::uint32_t> tree(capacity, disks.size());
-  for (std::size_t i = 0; i < disks.size(); ++i) {
-    const Box4 b = box_of(disks[i]);
-    tree.insert(geos::geom::Envelope(b.x0, b.x1, b.y0, b.y1), std::uint32_t(i));
-  }
-  tree.build();
+  GeosTree tree(capacity, disks.size());
+  build_geos(tree, disks);
   r.build = seconds_since(t);
   t = Clock::now();
   tree.queryPairs([&](std::uint32_t a, std::uint32_t b) {
